@@ -1,0 +1,8 @@
+"""flowkit: streamlines through gridded 3D vector fields, stored in HDF5, rendered with line styles."""
+
+from .fields import Field, Grid
+from .lines import Lines
+
+__version__ = "0.1.0"
+
+__all__ = ["Field", "Grid", "Lines", "__version__"]

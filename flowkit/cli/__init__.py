@@ -1,0 +1,38 @@
+"""The ``flowkit`` command.  Each subcommand lives in its own module of this package and exposes
+``register(subparsers)``, which adds its parser and sets ``func`` to a function taking the args;
+modules are found automatically (a module whose name starts with "_" is a helper, not a command)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+
+class CLIError(Exception):
+    """An error to print as one line (no traceback) with exit status 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="flowkit", description=__import__("flowkit").__doc__)
+    p.add_argument("--version", action="version", version=f"flowkit {__import__('flowkit').__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for m in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if not m.name.startswith("_"):
+            importlib.import_module(f"flowkit.cli.{m.name}").register(sub)
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (CLIError, FileNotFoundError, ValueError, KeyError, OSError) as e:
+        msg = e.args[0] if isinstance(e, KeyError) and e.args else e
+        print(f"flowkit {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,143 @@
+"""Trilinear interpolation on uniform/rectilinear grids, as numba functions.
+
+The scalar functions (``locate_axis``, ``locate``, ``trilinear_vector``, ``trilinear_scalar``) are
+meant to be called from other numba kernels; ``sample_vectors``/``sample_scalars`` are the
+vectorised entry points.  Grid arguments are ``Grid.kernel_args()``:
+``(x, y, z, period[3], inv_spacing[3])`` with ``inv_spacing`` all zero for rectilinear grids.
+
+Status codes of a sample: INSIDE, OUTSIDE (never extrapolated), NAN_CELL (a corner is NaN).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+INSIDE = 0
+OUTSIDE = 1
+NAN_CELL = 2
+
+
+@njit(cache=True, inline="always")
+def locate_axis(c, period, inv, x):
+    """Cell index i and local coordinate t in [0, 1] of x on one axis; i = -1 when outside.
+
+    For a periodic axis the cell with index n-1 (when it exists) is the wrap cell whose upper
+    node is node 0; callers take the upper node as (i + 1) % n.
+    """
+    n = c.size
+    c0 = c[0]
+    if period > 0.0:
+        x = c0 + (x - c0) % period
+        if x > c[n - 1]:
+            # wrap cell, or rounding of x0 + L when the period equals the span
+            w = c0 + period - c[n - 1]
+            if w <= 0.0:
+                return n - 2, 1.0
+            t = (x - c[n - 1]) / w
+            return n - 1, min(t, 1.0)
+    elif not (x >= c0 and x <= c[n - 1]):  # also false for NaN
+        return -1, 0.0
+    if inv > 0.0:
+        i = int((x - c0) * inv)
+        if i > n - 2:
+            i = n - 2
+        elif i < 0:
+            i = 0
+        # rounding of (x - c0) * inv may land one cell off; fix with the true coordinates
+        if x < c[i]:
+            i -= 1
+        elif x > c[i + 1] and i < n - 2:
+            i += 1
+    else:
+        i = np.searchsorted(c, x, side="right") - 1
+        if i > n - 2:
+            i = n - 2
+        elif i < 0:
+            i = 0
+    t = (x - c[i]) / (c[i + 1] - c[i])
+    return i, min(max(t, 0.0), 1.0)
+
+
+@njit(cache=True, inline="always")
+def locate(gx, gy, gz, period, inv, px, py, pz):
+    """(i, j, k, tx, ty, tz, inside) of a point."""
+    i, tx = locate_axis(gx, period[0], inv[0], px)
+    j, ty = locate_axis(gy, period[1], inv[1], py)
+    k, tz = locate_axis(gz, period[2], inv[2], pz)
+    ok = i >= 0 and j >= 0 and k >= 0
+    return i, j, k, tx, ty, tz, ok
+
+
+@njit(cache=True, inline="always")
+def trilinear_vector(vec, i, j, k, tx, ty, tz):
+    """Trilinear vector at local coords of cell (i, j, k); returns (u, v, w, has_nan)."""
+    nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
+    i1 = (i + 1) % nx
+    j1 = (j + 1) % ny
+    k1 = (k + 1) % nz
+    out0 = 0.0
+    out1 = 0.0
+    out2 = 0.0
+    for c in range(8):
+        ii = i1 if c & 1 else i
+        jj = j1 if c & 2 else j
+        kk = k1 if c & 4 else k
+        w = (tx if c & 1 else 1.0 - tx) * (ty if c & 2 else 1.0 - ty) * (tz if c & 4 else 1.0 - tz)
+        out0 += w * vec[ii, jj, kk, 0]
+        out1 += w * vec[ii, jj, kk, 1]
+        out2 += w * vec[ii, jj, kk, 2]
+    bad = not (np.isfinite(out0) and np.isfinite(out1) and np.isfinite(out2))
+    if bad:
+        # a zero weight times NaN is still NaN, so any NaN corner poisons the sum: say so
+        return np.nan, np.nan, np.nan, True
+    return out0, out1, out2, False
+
+
+@njit(cache=True, inline="always")
+def trilinear_scalar(arr, i, j, k, tx, ty, tz):
+    """Trilinear scalar at local coords of cell (i, j, k); returns (value, has_nan)."""
+    nx, ny, nz = arr.shape[0], arr.shape[1], arr.shape[2]
+    i1 = (i + 1) % nx
+    j1 = (j + 1) % ny
+    k1 = (k + 1) % nz
+    out = 0.0
+    for c in range(8):
+        ii = i1 if c & 1 else i
+        jj = j1 if c & 2 else j
+        kk = k1 if c & 4 else k
+        w = (tx if c & 1 else 1.0 - tx) * (ty if c & 2 else 1.0 - ty) * (tz if c & 4 else 1.0 - tz)
+        out += w * arr[ii, jj, kk]
+    if not np.isfinite(out):
+        return np.nan, True
+    return out, False
+
+
+@njit(cache=True, parallel=True)
+def sample_vectors(gx, gy, gz, period, inv, vec, pts, out, status):
+    for n in prange(pts.shape[0]):
+        i, j, k, tx, ty, tz, ok = locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1], pts[n, 2])
+        if not ok:
+            out[n, 0] = np.nan
+            out[n, 1] = np.nan
+            out[n, 2] = np.nan
+            status[n] = OUTSIDE
+            continue
+        u, v, w, bad = trilinear_vector(vec, i, j, k, tx, ty, tz)
+        out[n, 0] = u
+        out[n, 1] = v
+        out[n, 2] = w
+        status[n] = NAN_CELL if bad else INSIDE
+
+
+@njit(cache=True, parallel=True)
+def sample_scalars(gx, gy, gz, period, inv, arr, pts, out, status):
+    for n in prange(pts.shape[0]):
+        i, j, k, tx, ty, tz, ok = locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1], pts[n, 2])
+        if not ok:
+            out[n] = np.nan
+            status[n] = OUTSIDE
+            continue
+        val, bad = trilinear_scalar(arr, i, j, k, tx, ty, tz)
+        out[n] = val
+        status[n] = NAN_CELL if bad else INSIDE

@@ -1,0 +1,1 @@
+"""Integration: methods as data, numba and OpenCL backends, attributes, seeding."""

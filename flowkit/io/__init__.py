@@ -1,0 +1,1 @@
+"""Lines <-> HDF5 and exports."""

@@ -1,0 +1,1 @@
+"""Style model, camera, moderngl renderer, colormaps."""
