@@ -1,1 +1,10 @@
-"""Style model, camera, moderngl renderer, colormaps."""
+"""Style model, camera, moderngl renderer, colormaps (paper sections 3.1-3.2 and 5)."""
+
+from .camera import Camera
+from .context import RenderContextError, create_context, default_context
+from .renderer import LineRenderer, render_lines, save_png
+from .style import Band, ColorMap, LineStyle, Style, StyleError, WidthMap, load_style
+
+__all__ = ["Band", "Camera", "ColorMap", "LineRenderer", "LineStyle", "RenderContextError",
+           "Style", "StyleError", "WidthMap", "create_context", "default_context", "load_style",
+           "render_lines", "save_png"]

@@ -1,0 +1,262 @@
+"""moderngl line-style renderer: Lines in, RGBA image out.
+
+Geometry goes to the GPU once per ``LineRenderer``: float32 positions, a lines_adjacency index
+buffer, and one float32 buffer per attribute a style reads (uploaded the first time a style reads
+it).  A render binds the program for the style's flags (cached), sets uniforms and textures, and
+draws into a multisampled framebuffer that is resolved and read back.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import moderngl
+import numpy as np
+
+from ..lines import Lines
+from .camera import Camera
+from .colormaps import colormap_texture
+from .context import default_context
+from .shader_build import ShaderFlags, program_cache, shader_flags
+from .style import ColorMap, Style, StyleError, WidthMap, load_style
+
+
+def adjacency_indices(lines: Lines) -> np.ndarray:
+    """uint32 (S, 4) indices (prev, a, b, next) of every segment a-b whose ends are finite;
+    prev/next repeat a/b at line ends and next to non-finite vertices."""
+    n = lines.lengths
+    finite = np.all(np.isfinite(lines.points), axis=1)
+    starts = lines.offsets[:-1]
+    nseg = np.maximum(n - 1, 0)
+    if nseg.sum() == 0:
+        return np.zeros((0, 4), np.uint32)
+    line_of = np.repeat(np.arange(len(n)), nseg)
+    a = starts[line_of] + np.arange(nseg.sum()) - np.repeat(np.cumsum(nseg) - nseg, nseg)
+    b = a + 1
+    first, last = starts[line_of], starts[line_of] + n[line_of] - 1
+    prev = np.maximum(a - 1, first)
+    nxt = np.minimum(b + 1, last)
+    prev = np.where(finite[prev], prev, a)
+    nxt = np.where(finite[nxt], nxt, b)
+    keep = finite[a] & finite[b]
+    idx = np.stack([prev, a, b, nxt], axis=1)[keep]
+    if idx.size and idx.max() >= 2**32:
+        raise ValueError(f"{lines.n_points} vertices: more than 2**32 cannot be drawn in one call")
+    return idx.astype(np.uint32)
+
+
+def _as_style(style) -> Style:
+    if isinstance(style, Style):
+        return style
+    if isinstance(style, (str, os.PathLike)):
+        return load_style(style)
+    raise TypeError(f"style must be a Style or a path to a TOML style file, got {type(style).__name__}")
+
+
+class LineRenderer:
+    """Draws one set of lines with any number of styles, cameras and sizes."""
+
+    def __init__(self, lines: Lines, ctx: moderngl.Context | None = None):
+        self.ctx = ctx or default_context()
+        self.lines = lines
+        self.bounds = lines.bounds()
+        pos = np.ascontiguousarray(lines.points, dtype=np.float32)
+        self._pos = self.ctx.buffer(pos.tobytes())
+        idx = adjacency_indices(lines)
+        self.n_segments = idx.shape[0]
+        self._ibo = self.ctx.buffer(idx.tobytes()) if idx.size else None
+        self._attrs: dict[str, moderngl.Buffer] = {}
+        self._vaos: dict[tuple, moderngl.VertexArray] = {}
+        self._fbos: dict[tuple, tuple] = {}
+        self.programs = program_cache(self.ctx)
+
+    # -- geometry -------------------------------------------------------------------------------
+    def uploaded_attributes(self) -> list[str]:
+        return list(self._attrs)
+
+    def _attribute_buffer(self, name: str) -> moderngl.Buffer:
+        buf = self._attrs.get(name)
+        if buf is None:
+            lines = self.lines
+            if name in lines.point_data:
+                v = np.asarray(lines.point_data[name])
+            elif name in lines.line_data:  # per-line values repeated on the line's vertices
+                v = np.repeat(np.asarray(lines.line_data[name]), lines.lengths)
+            else:
+                have = sorted(lines.point_data) + sorted(lines.line_data)
+                raise StyleError(f"the style reads attribute '{name}', which these lines do not "
+                                 f"have; available: {', '.join(have) or 'none'}")
+            if v.ndim != 1:
+                raise StyleError(f"attribute '{name}' has shape {v.shape}; a style can only map "
+                                 f"scalar (one value per vertex) attributes")
+            buf = self.ctx.buffer(np.ascontiguousarray(v, dtype=np.float32).tobytes())
+            self._attrs[name] = buf
+        return buf
+
+    def _vao(self, prog: moderngl.Program, attrs: list[str]) -> moderngl.VertexArray:
+        key = (prog.glo, tuple(attrs))
+        vao = self._vaos.get(key)
+        if vao is None:
+            content = [(self._pos, "3f", "a_pos")]
+            content += [(self._attribute_buffer(a), "f", f"a_attr{k}") for k, a in enumerate(attrs)]
+            vao = self.ctx.vertex_array(prog, content, self._ibo, index_element_size=4,
+                                        skip_errors=True)
+            self._vaos[key] = vao
+        return vao
+
+    # -- framebuffers ---------------------------------------------------------------------------
+    def _targets(self, size: tuple[int, int], samples: int):
+        key = (size, samples)
+        if key not in self._fbos:
+            ctx = self.ctx
+            out = ctx.framebuffer(ctx.renderbuffer(size, 4), ctx.depth_renderbuffer(size))
+            ms = None
+            if samples > 1:
+                ms = ctx.framebuffer(ctx.renderbuffer(size, 4, samples=samples),
+                                     ctx.depth_renderbuffer(size, samples=samples))
+            self._fbos.clear()  # keep one size: print sizes are big
+            self._fbos[key] = (ms, out)
+        return self._fbos[key]
+
+    # -- drawing --------------------------------------------------------------------------------
+    def prepare(self, style: Style) -> tuple[ShaderFlags, moderngl.Program]:
+        samples = self.samples_for(style)
+        flags = shader_flags(style, msaa=samples > 1)
+        return flags, self.programs.get(flags)
+
+    def samples_for(self, style: Style) -> int:
+        if style.antialias != "msaa":
+            return 1
+        return min(style.samples, self.ctx.max_samples) if self.ctx.max_samples >= 2 else 1
+
+    def render(self, style: Style | str | os.PathLike, size: tuple[int, int] = (1920, 1080),
+               camera: Camera | None = None) -> np.ndarray:
+        """(H, W, 4) uint8 RGBA, row 0 at the top."""
+        style = _as_style(style)
+        w, h = (int(v) for v in size)
+        if w < 1 or h < 1:
+            raise ValueError(f"image size {w}x{h} must be at least 1x1")
+        k = style.supersample
+        rw, rh = w * k, h * k
+        limit = self.ctx.info["GL_MAX_RENDERBUFFER_SIZE"]
+        if max(rw, rh) > limit:
+            raise ValueError(f"{w}x{h} with supersample {k} needs {rw}x{rh} pixels; this OpenGL "
+                             f"allows at most {limit} per side: lower supersample or size")
+        self.draw(style, (rw, rh), camera)
+        img = self.read()
+        if k > 1:
+            img = img.reshape(h, k, w, k, 4).astype(np.float32).mean(axis=(1, 3))
+            img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+        return img
+
+    def draw(self, style: Style, size: tuple[int, int], camera: Camera | None = None):
+        """Draw into the (multisampled) target of ``size`` and resolve it; no read-back."""
+        ctx = self.ctx
+        flags, prog = self.prepare(style)
+        attrs = style.attributes()
+        cam = (camera or style.camera).setup(self.bounds, *size)
+        samples = self.samples_for(style)
+        ms, out = self._targets(size, samples)
+        target = ms or out
+        target.use()
+        ctx.viewport = (0, 0, *size)
+        bg = style.background or (0.0, 0.0, 0.0, 0.0)
+        target.clear(*bg, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        if flags.smooth_edge:
+            ctx.enable(moderngl.BLEND)
+            ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+        else:
+            ctx.disable(moderngl.BLEND)
+        if self._ibo is not None:
+            half = style.scale * style.max_total_width
+            pixels = style.units == "pixels"
+            ss = style.supersample if pixels else 1  # pixel widths are output pixels
+            uniforms = {
+                "u_view": cam.view.T.astype("f4").tobytes(),
+                "u_proj": cam.proj.T.astype("f4").tobytes(),
+                "u_half": half * ss,
+                "u_scale": style.scale * ss,
+                "u_pixels": 1.0 if pixels else 0.0,
+                "u_px": cam.px_scale,
+                "u_persp": 1.0 if cam.proj[3, 2] != 0 else 0.0,
+            }
+            unit = 0
+            for name, value in band_uniforms(style).items():
+                if isinstance(value, str):  # a colormap name -> texture bound to the next unit
+                    colormap_texture(ctx, value).use(location=unit)
+                    value, unit = unit, unit + 1
+                uniforms[name] = value
+            for name, value in uniforms.items():
+                if name in prog:  # the compiler drops uniforms it can prove unused
+                    u = prog[name]
+                    if isinstance(value, bytes):
+                        u.write(value)
+                    else:
+                        u.value = value
+            self._vao(prog, attrs).render(moderngl.LINES_ADJACENCY)
+        if ms is not None:
+            ctx.copy_framebuffer(out, ms)
+
+    def read(self) -> np.ndarray:
+        """Read back the resolved image of the last draw: (H, W, 4) uint8, top row first."""
+        out = next(iter(self._fbos.values()))[1]
+        w, h = out.size
+        data = out.read(components=4, alignment=1)
+        return np.frombuffer(data, np.uint8).reshape(h, w, 4)[::-1].copy()
+
+
+def band_uniforms(style: Style) -> dict[str, object]:
+    """Uniform values of every band, named as the templates name them (global band index).
+    Colormap names are returned as strings; the renderer turns them into texture units."""
+    u: dict[str, object] = {}
+    g = 0
+    for ls in style.styles.values():
+        for b in ls.bands:
+            if isinstance(b.color, ColorMap):
+                lo, hi = b.color.range
+                u[f"u_cmap{g}"] = b.color.cmap
+                u[f"u_crange{g}"] = (1.0 / (hi - lo), -lo / (hi - lo))
+            else:
+                u[f"u_color{g}"] = tuple(b.color)
+            if isinstance(b.width, WidthMap):
+                lo, hi = b.width.range
+                u[f"u_wmap{g}"] = (1.0 / (hi - lo), -lo / (hi - lo), b.width.min, b.width.max)
+            else:
+                u[f"u_width{g}"] = float(b.width)
+            u[f"u_depth{g}"] = float(b.depth_offset)
+            g += 1
+    return u
+
+
+def render_lines(lines: Lines, style: Style | str | os.PathLike, size=(1920, 1080),
+                 camera: Camera | None = None, ctx: moderngl.Context | None = None) -> np.ndarray:
+    """Render ``lines`` with ``style`` (a Style or a TOML path) to an (H, W, 4) uint8 RGBA array.
+    ``camera`` overrides the style's camera.  Uses a headless EGL context unless ``ctx`` is given.
+    To draw the same lines many times, keep a ``LineRenderer``."""
+    style = _as_style(style)
+    return LineRenderer(lines, ctx).render(style, size, camera)
+
+
+def save_png(image: np.ndarray, path: str | os.PathLike) -> Path:
+    """Write an (H, W, 3|4) uint8 image as PNG atomically (temp file + rename)."""
+    from PIL import Image
+
+    img = np.asarray(image)
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] not in (3, 4):
+        raise ValueError(f"save_png needs an (H, W, 3 or 4) uint8 array, got {img.dtype} {img.shape}")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".png.tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            Image.fromarray(img, "RGBA" if img.shape[2] == 4 else "RGB").save(f, format="PNG")
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
