@@ -36,8 +36,12 @@ Fields (``make(name, **params)`` builds one by name; ``FIELDS`` lists the names)
 =====================  =========================================================  =====  ========
 
 The ``p`` scalars are the pressures (unit density) that balance the steady Euler equations
-(uniform flow, rotation, ABC: grad p = -(u . grad) u) or the pressure Poisson equation
-(Taylor-Green: lap p = -tr(J J)); tests check those identities.
+(rotation, ABC: grad p = -(u . grad) u) or the pressure Poisson equation (Taylor-Green:
+lap p = -tr(J J)); Hill's ``psi`` is constant along streamlines; tests check those identities.
+
+Example, the benchmark's grid (three periods of ABC at 128 nodes per period, periodic):
+``ABCFlow().to_field(384, bounds=[[0, 6 * np.pi]] * 3)``; pass ``periodic=False`` for a bounded
+box whose lines leave the domain.  A field's ``source`` is ``"analytic " + describe()``.
 """
 
 from __future__ import annotations
