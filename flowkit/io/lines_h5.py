@@ -152,8 +152,8 @@ class LinesWriter:
         vtk.attrs["flowkit_format_version"] = np.int64(FORMAT_VERSION)
         vtk.create_dataset("NumberOfPoints", data=np.zeros(1, np.int64))
         for topology in ("Vertices", "Polygons", "Strips"):
-            _topology(vtk, topology, {}, 1)
-        _topology(vtk, "Lines", comp, max(chunk_lines, chunk_points))
+            _topology(vtk, topology, {}, 1, 1)
+        _topology(vtk, "Lines", comp, chunk_lines, chunk_points)
 
         def growing(group, name, dtype, shape, chunk):
             return group.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape),
@@ -262,7 +262,7 @@ class LinesWriter:
         f["VTKHDF/Lines/NumberOfCells"][0] = nl
         f["VTKHDF/Lines/NumberOfConnectivityIds"][0] = n
         for axis, name in enumerate("xyz"):
-            ds = _column_view(f, "VTKHDF/Points", axis, n, self.position_dtype, name)
+            ds = _column_view(f, "/VTKHDF/Points", axis, n, self.position_dtype, name)
             ds.attrs.update(axis=name.upper(), long_name=f"{name} position",
                             units=str(self.attrs.get("length_units", "1")))
             nc.attach(ds, self._obs)
@@ -307,15 +307,15 @@ def _put(ds: h5py.Dataset, start: int, stop: int, values) -> None:
         ds[start:stop] = np.asarray(values, ds.dtype)
 
 
-def _topology(vtk: h5py.Group, name: str, comp: dict, chunk: int) -> None:
+def _topology(vtk: h5py.Group, name: str, comp: dict, chunk_cells: int, chunk_ids: int) -> None:
     """A VTKHDF cell category: one partition, no cells yet (``append`` grows Lines)."""
     g = vtk.create_group(name)
     g.create_dataset("NumberOfCells", data=np.zeros(1, np.int64))
     g.create_dataset("NumberOfConnectivityIds", data=np.zeros(1, np.int64))
-    g.create_dataset("Offsets", data=np.zeros(1, np.int64), maxshape=(None,), chunks=(chunk,),
-                     **comp)
+    g.create_dataset("Offsets", data=np.zeros(1, np.int64), maxshape=(None,),
+                     chunks=(chunk_cells + 1,), **comp)
     g.create_dataset("Connectivity", shape=(0,), dtype=np.int64, maxshape=(None,),
-                     chunks=(chunk,), **comp)
+                     chunks=(chunk_ids,), **comp)
 
 
 def _line_component(f: h5py.File, k: int, dimid: int) -> h5py.Dataset:
