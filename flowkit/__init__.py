@@ -1,8 +1,9 @@
 """flowkit: streamlines through gridded 3D vector fields, stored in HDF5, rendered with line styles."""
 
 from .fields import Field, Grid
+from .io.lines_h5 import read_lines, write_lines
 from .lines import Lines
 
 __version__ = "0.1.0"
 
-__all__ = ["Field", "Grid", "Lines", "__version__"]
+__all__ = ["Field", "Grid", "Lines", "__version__", "read_lines", "write_lines"]
