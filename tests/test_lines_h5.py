@@ -392,3 +392,29 @@ def test_writer_rejects_bad_schemas(tmp_path):
         w.append(Lines(np.zeros((2, 3)), [0, 2], {"speed": np.ones(2)}))
     assert list(tmp_path.iterdir()) == [path]
     assert np.array_equal(read_lines(path).point_data["speed"], np.ones(2, np.float32))
+
+
+def test_other_component_counts_get_their_own_dimension(tmp_path):
+    xr = pytest.importorskip("xarray")
+    lines = make_lines([3, 0, 4])
+    lines.point_data["uv"] = np.arange(14.0).reshape(7, 2)
+    lines.line_data["seed_point"] = np.arange(9.0).reshape(3, 3)
+    path = write_lines(lines, tmp_path / "l.h5", position_dtype="float64")
+    assert_exact(read_lines(path), lines)
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        assert ds.uv.dims == ("obs", "component_2")
+        assert ds.seed_point.dims == ("trajectory", "component")
+        assert np.array_equal(ds.seed_point.values, lines.line_data["seed_point"])
+    with pytest.raises(ValueError, match="component_2"):
+        LinesWriter(tmp_path / "x.h5", {"uv": ("f8", (2,)), "component_2": "f8"})
+
+
+@pytest.mark.filterwarnings("error")
+def test_summary_ranges_skip_nan_and_inf(tmp_path):
+    lines = make_lines([2, 3])
+    lines.point_data["T"][:] = [np.nan, 1.5, np.inf, -2.0, np.nan]
+    lines.point_data["time"][:] = np.nan
+    text = summary(write_lines(lines, tmp_path / "l.h5"))
+    assert "[-2, 1.5]" in text
+    time_row = next(ln for ln in text.splitlines() if ln.strip().startswith("time "))
+    assert time_row.endswith("[nan, nan]")

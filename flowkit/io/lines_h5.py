@@ -34,7 +34,7 @@ from typing import Self
 import h5py
 import numpy as np
 
-from ..integrate.reasons import Reason
+from ..integrate.reasons import REASON_NAMES, Reason
 from ..lines import Lines
 from . import netcdf_dims as nc
 from .atomic import AtomicPath
@@ -100,11 +100,16 @@ class LinesWriter:
         self.path = Path(path)
         self.point_schema = _schema(point_attributes or {}, "point", self.path)
         self.line_schema = _schema(line_attributes or {}, "line", self.path)
+        # one netCDF dimension per component count: "component" (3) or "component_<k>"
+        sizes = {shape[0] for _, shape in (*self.point_schema.values(), *self.line_schema.values())
+                 if shape}
+        self._component_dims = {k: "component" if k == 3 else f"component_{k}" for k in sizes}
+        reserved = _RESERVED_VARIABLES | set(self._component_dims.values())
         clash = (set(self.point_schema) & set(self.line_schema)) | (
-            (set(self.point_schema) | set(self.line_schema)) & _RESERVED_VARIABLES)
+            (set(self.point_schema) | set(self.line_schema)) & reserved)
         if clash:
             raise ValueError(f"{self.path}: attribute names {sorted(clash)} clash with each other or "
-                             f"with the layout's own names {sorted(_RESERVED_VARIABLES)}")
+                             f"with the layout's own names {sorted(reserved)}")
         self.position_dtype = np.dtype(position_dtype)
         if self.position_dtype not in (np.float32, np.float64):
             raise ValueError(f"{self.path}: position_dtype must be float32 or float64, "
@@ -139,11 +144,8 @@ class LinesWriter:
         self._obs = nc.create_dimension(f, "obs", 0, next(ids), unlimited=True, chunk=chunk_points)
         self._traj = nc.create_dimension(f, "trajectory", 0, next(ids), unlimited=True,
                                          chunk=chunk_lines)
-        components = {}
-        for _, shape in self.point_schema.values():
-            if shape and shape[0] not in components:
-                name = "component" if shape[0] == 3 else f"component_{shape[0]}"
-                components[shape[0]] = nc.create_dimension(f, name, shape[0], next(ids))
+        components = {k: nc.create_dimension(f, name, k, next(ids))
+                      for k, name in self._component_dims.items()}
 
         vtk = f.create_group("VTKHDF", track_order=True)
         vtk.attrs["Version"] = np.array(VTKHDF_VERSION, np.int64)
@@ -180,7 +182,7 @@ class LinesWriter:
         for name, (dtype, shape) in line_schema.items():
             ds = self._line_ds[name] = growing(cdata, name, dtype, shape, chunk_lines)
             f[name] = ds
-            nc.attach(ds, self._traj, *[_line_component(f, k, next(ids)) for k in shape])
+            nc.attach(ds, self._traj, *[components[k] for k in shape])
         for name, ds in {**self._point_ds, **self._line_ds}.items():
             if name in _LONG_NAMES:
                 ds.attrs["long_name"] = _LONG_NAMES[name]
@@ -190,7 +192,7 @@ class LinesWriter:
             seed.attrs[_SYNTHESIZED] = np.int8(1)  # the Lines had no seed_id: read drops it
         if "reason" in line_schema:
             codes = np.array([r.value for r in Reason], line_schema["reason"][0])
-            names = [r.label for r in Reason]
+            names = REASON_NAMES
             table = f.create_dataset("reason_code", data=codes)
             nc.make_coordinate(table, next(ids))
             table.attrs["long_name"] = "termination reason code"
@@ -316,11 +318,6 @@ def _topology(vtk: h5py.Group, name: str, comp: dict, chunk_cells: int, chunk_id
                      chunks=(chunk_cells + 1,), **comp)
     g.create_dataset("Connectivity", shape=(0,), dtype=np.int64, maxshape=(None,),
                      chunks=(chunk_ids,), **comp)
-
-
-def _line_component(f: h5py.File, k: int, dimid: int) -> h5py.Dataset:
-    name = f"line_component_{k}"
-    return f[name] if name in f else nc.create_dimension(f, name, k, dimid)
 
 
 def _column_view(f: h5py.File, source: str, axis: int, n: int, dtype, name: str) -> h5py.Dataset:
@@ -559,8 +556,7 @@ def _ranges(ds: h5py.Dataset, block: int = 1 << 20) -> list[tuple[float, float]]
     lo, hi = np.full(k, np.inf), np.full(k, -np.inf)
     for start in range(0, ds.shape[0], block):
         a = ds[start:start + block].reshape(-1, k).astype(np.float64)
-        finite = np.where(np.isfinite(a), a, np.nan)
-        if np.isfinite(finite).any():
-            lo = np.fmin(lo, np.nanmin(finite, axis=0))
-            hi = np.fmax(hi, np.nanmax(finite, axis=0))
-    return [(a, b) if np.isfinite(a) else (np.nan, np.nan) for a, b in zip(lo, hi)]
+        a[~np.isfinite(a)] = np.nan  # fmin/fmax skip NaN: the range of the finite values
+        lo = np.fmin(lo, np.fmin.reduce(a, axis=0, initial=np.inf))
+        hi = np.fmax(hi, np.fmax.reduce(a, axis=0, initial=-np.inf))
+    return [(a, b) if a <= b else (np.nan, np.nan) for a, b in zip(lo, hi)]
