@@ -147,6 +147,7 @@ def test_streaming_memory_stays_about_one_chunk(tmp_path):
 def test_read_only_requested_attributes(tmp_path):
     lines = make_lines(LENGTHS)
     path = write_lines(lines, tmp_path / "l.h5")
+    assert set(read_lines(path, attributes="time").point_data) == {"time"}  # one name as str
     some = read_lines(path, attributes=["speed", "velocity", "reason"])
     assert set(some.point_data) == {"speed", "velocity"} and set(some.line_data) == {"reason"}
     assert np.array_equal(some.point_data["velocity"], lines.point_data["velocity"])
@@ -386,6 +387,11 @@ def test_writer_rejects_bad_schemas(tmp_path):
         LinesWriter(path, compression="zstd")
     with pytest.raises(ValueError, match="reserved"):
         write_lines(make_lines([2]), path, attrs={"featureType": "point"})
+    with pytest.raises(ValueError, match="metadata 'names'"):  # checked when the writer opens
+        LinesWriter(path, attrs={"names": np.array(["a", "b"])})
+    with pytest.raises(ValueError, match="metadata 'handle'"):
+        LinesWriter(path, attrs={"handle": object()})
+    assert list(tmp_path.iterdir()) == []
     with LinesWriter(path, {"speed": "float32"}) as w:
         with pytest.raises(ValueError, match="'speed'.*float32"):
             w.append(Lines(np.zeros((2, 3)), [0, 2], {"speed": np.zeros((2, 3))}))

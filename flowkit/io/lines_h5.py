@@ -140,6 +140,7 @@ class LinesWriter:
     # -- layout ---------------------------------------------------------------------------------
     def _create(self, comp, chunk_points, chunk_lines):
         f = self._file
+        _put_attrs(f, self.attrs, self.path)  # first: unstorable metadata fails before any work
         ids = iter(range(1 << 30))
         self._obs = nc.create_dimension(f, "obs", 0, next(ids), unlimited=True, chunk=chunk_points)
         self._traj = nc.create_dimension(f, "trajectory", 0, next(ids), unlimited=True,
@@ -270,7 +271,6 @@ class LinesWriter:
             nc.attach(ds, self._obs)
         f.attrs.update(Conventions=CONVENTIONS, featureType="trajectory",
                        flowkit_format=FORMAT_NAME, flowkit_format_version=np.int64(FORMAT_VERSION))
-        _put_attrs(f, self.attrs, self.path)
 
 
 def _schema(spec: dict, kind: str, path) -> dict:
@@ -336,12 +336,17 @@ def _put_attrs(f: h5py.File, attrs: dict, path) -> None:
         if key in _RESERVED_ATTRS or not isinstance(key, str):
             raise ValueError(f"{path}: metadata key {key!r} is reserved by the file layout")
         if isinstance(value, (str, bool, int, float, np.generic, np.ndarray)):
-            f.attrs[key] = value
+            try:
+                f.attrs[key] = value
+            except TypeError as e:
+                raise ValueError(f"{path}: metadata '{key}' ({type(value).__name__}) cannot be "
+                                 f"stored as an HDF5 attribute: {e}") from None
         else:
             try:
                 f.attrs[key] = json.dumps(value)
             except TypeError as e:
-                raise ValueError(f"{path}: metadata '{key}' = {value!r} cannot be stored: {e}")
+                raise ValueError(f"{path}: metadata '{key}' = {value!r} cannot be stored: {e}") \
+                    from None
             as_json.append(key)
     if as_json:
         f.attrs["flowkit_json_attrs"] = json.dumps(as_json)
@@ -369,6 +374,8 @@ def read_lines(path, *, attributes=None) -> Lines:
     """Read a lines file. ``attributes``: None for all, or the point/line attribute names to read
     (the others are not read at all); ``[]`` reads the geometry only."""
     path = Path(path)
+    if isinstance(attributes, str):
+        attributes = [attributes]
     with _open(path) as f:
         try:
             return _read(f, path, attributes)
