@@ -1,9 +1,12 @@
 """flowkit: streamlines through gridded 3D vector fields, stored in HDF5, rendered with line styles."""
 
 from .fields import Field, Grid
+from .integrate.options import TraceOptions
+from .integrate.trace import trace, trace_to_file
 from .io.lines_h5 import read_lines, write_lines
 from .lines import Lines
 
 __version__ = "0.1.0"
 
-__all__ = ["Field", "Grid", "Lines", "__version__", "read_lines", "write_lines"]
+__all__ = ["Field", "Grid", "Lines", "TraceOptions", "__version__", "read_lines", "trace",
+           "trace_to_file", "write_lines"]

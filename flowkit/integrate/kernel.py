@@ -1,0 +1,736 @@
+"""The numba integrator: explicit Runge–Kutta from tableau data, one line per prange iteration.
+
+Algorithm (the OpenCL backend reproduces it step for step; docs/integrator.md says more):
+
+* State of a line = position y (3), the independent parameter ``tau`` (time, or arc length when
+  ``param == 1``), the dependent one ``dep`` integrated as a 4th ODE component (ds/dt = |v|, or
+  dt/ds = 1/|v|), the controller's next step ``h`` (signed: negative for backward lines) and the
+  first stage ``k0`` of the next step.  All stages are 4-vectors; only the position enters the
+  error norm.
+* The field is evaluated from the 8 corner values of one cell, gathered once per cell into the
+  coefficients of the trilinear polynomial.  Cell-aware (``aware``): every stage of a step uses
+  the polynomial of the cell the step starts in (outside the cell it is the same smooth
+  polynomial, extended); an accepted step whose end leaves the cell is cut where the dense
+  output first meets a face; the coordinate is snapped onto the face, the line moves to the
+  neighbour cell and the next step starts with a fresh k0 there.  Steps are also capped at
+  ``cellfac`` times the straight-line time to the exit face so that little work is cut away.
+  Otherwise each stage looks up its own cell (cached while it stays in the same cell), using the
+  boundary cell's polynomial, extended, for stages just outside a bounded domain.
+* Events inside an accepted step are found on the dense output (Illinois root finding in θ):
+  leaving the cell/domain, and the dependent parameter reaching its limit.  The independent
+  parameter's limit is met by clipping the step.  Earliest event wins.
+* Output: each launch writes at most ``B`` vertices per line into (n_active, B) buffers.  A line
+  whose buffer is full suspends with its whole state in ``sf``/``si`` (including a pending dense
+  polynomial when resampling) and continues, bit for bit, in the next launch.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ..fields.interp import locate_axis
+from .reasons import Reason
+
+QMAX = 8  # highest dense-output degree a method may have
+# float state (sf) columns
+S_Y, S_TAU, S_DEP, S_H, S_ERRP, S_K0 = 0, 3, 4, 5, 6, 7  # k0 has 4 entries: 7..10
+S_LO, S_HI = 11, 14  # cell faces, 3 each (cell-aware mode)
+S_Y0, S_TAU0, S_HS, S_TH = 17, 21, 22, 23  # pending step: y0 (+dep) (4), tau0, h, θ end
+S_LAST_S = 24  # arc length of the last emitted vertex
+S_Q = 25  # dense coefficients, 4 x QMAX
+NF = S_Q + 4 * QMAX
+# int state (si) columns
+I_STATUS, I_REASON, I_NACC, I_NREJ, I_CELL, I_LASTREJ, I_PEND, I_M, I_FINAL, I_STIFF = (
+    0, 1, 2, 3, 4, 7, 8, 9, 10, 11)
+NI = 12
+NEW, RUNNING, DONE = 0, 1, 2
+# float options (fo)
+O_RTOL, O_ATOL, O_SAFETY, O_FACMIN, O_FACMAX, O_BETA = 0, 3, 6, 7, 8, 9
+O_H0, O_HMIN, O_HMAX, O_MAXLEN, O_MAXTIME, O_STAG, O_CELLFAC = 10, 11, 12, 13, 14, 15, 16
+NFO = 17
+# int options (io)
+P_MAXSTEPS, P_PARAM, P_AWARE, P_EMIT = 0, 1, 2, 3
+NIO = 4
+EMIT_STEPS, EMIT_SPACING, EMIT_FINAL = 0, 1, 2
+# events
+EV_NONE, EV_FACE, EV_BOUNDARY, EV_DEPLIM = 0, 1, 2, 3
+
+R_OUT = int(Reason.OUT_OF_DOMAIN)
+R_MAXLEN = int(Reason.MAX_LENGTH)
+R_MAXTIME = int(Reason.MAX_TIME)
+R_MAXSTEPS = int(Reason.MAX_STEPS)
+R_STAG = int(Reason.STAGNATION)
+R_UNDER = int(Reason.STEP_UNDERFLOW)
+R_NAN = int(Reason.NAN_FIELD)
+R_SEED = int(Reason.SEED_OUTSIDE)
+
+
+# -- cells ----------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _n_cells(c, period):
+    n = c.size
+    if period > 0.0 and c[0] + period - c[n - 1] > 0.0:
+        return n  # the wrap cell joins the last node to the first node's image
+    return n - 1
+
+
+@njit(cache=True, inline="always")
+def _width(c, period, i):
+    n = c.size
+    if i < n - 1:
+        return c[i + 1] - c[i]
+    return c[0] + period - c[n - 1]
+
+
+@njit(cache=True, inline="always")
+def _locate_cell(c, period, inv, x):
+    """(i, lo, hi) of the cell of x on one axis; bounded axes clamp to the end cells."""
+    n = c.size
+    if period > 0.0:
+        i, _ = locate_axis(c, period, inv, x)
+        xw = c[0] + (x - c[0]) % period
+        lo = c[i] + (x - xw)
+        return i, lo, lo + _width(c, period, i)
+    xc = min(max(x, c[0]), c[n - 1])
+    i, _ = locate_axis(c, 0.0, inv, xc)
+    return i, c[i], c[i + 1]
+
+
+@njit(cache=True)
+def _gather(vec, ci, coef):
+    """Coefficients of the trilinear polynomial of cell ci; False when a corner is not finite."""
+    nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
+    i, j, k = ci[0], ci[1], ci[2]
+    i1, j1, k1 = (i + 1) % nx, (j + 1) % ny, (k + 1) % nz
+    ok = True
+    for c in range(3):
+        v000 = vec[i, j, k, c]
+        v100 = vec[i1, j, k, c]
+        v010 = vec[i, j1, k, c]
+        v110 = vec[i1, j1, k, c]
+        v001 = vec[i, j, k1, c]
+        v101 = vec[i1, j, k1, c]
+        v011 = vec[i, j1, k1, c]
+        v111 = vec[i1, j1, k1, c]
+        coef[0, c] = v000
+        coef[1, c] = v100 - v000
+        coef[2, c] = v010 - v000
+        coef[3, c] = v001 - v000
+        coef[4, c] = v110 - v100 - v010 + v000
+        coef[5, c] = v101 - v100 - v001 + v000
+        coef[6, c] = v011 - v010 - v001 + v000
+        coef[7, c] = v111 - v110 - v101 - v011 + v100 + v010 + v001 - v000
+        for m in range(8):
+            if not math.isfinite(coef[m, c]):
+                ok = False
+    return ok
+
+
+@njit(cache=True)
+def _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef):
+    i, lo, hi = _locate_cell(gx, period[0], inv[0], px)
+    ci[0] = i
+    cf[0] = lo
+    cf[3] = hi
+    cf[6] = 1.0 / _width(gx, period[0], i)
+    i, lo, hi = _locate_cell(gy, period[1], inv[1], py)
+    ci[1] = i
+    cf[1] = lo
+    cf[4] = hi
+    cf[7] = 1.0 / _width(gy, period[1], i)
+    i, lo, hi = _locate_cell(gz, period[2], inv[2], pz)
+    ci[2] = i
+    cf[2] = lo
+    cf[5] = hi
+    cf[8] = 1.0 / _width(gz, period[2], i)
+    return _gather(vec, ci, coef)
+
+
+@njit(cache=True, inline="always")
+def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row):
+    """Right-hand side at p into k[row, 0:4]; returns the speed |v| (NaN for a NaN cell)."""
+    if not aware and not (ci[0] >= 0 and cf[0] <= px <= cf[3] and cf[1] <= py <= cf[4]
+            and cf[2] <= pz <= cf[5]):
+        _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+    tx = (px - cf[0]) * cf[6]
+    ty = (py - cf[1]) * cf[7]
+    tz = (pz - cf[2]) * cf[8]
+    u = coef[0, 0] + tx * (coef[1, 0] + ty * (coef[4, 0] + tz * coef[7, 0]) + tz * coef[5, 0]) \
+        + ty * (coef[2, 0] + tz * coef[6, 0]) + tz * coef[3, 0]
+    v = coef[0, 1] + tx * (coef[1, 1] + ty * (coef[4, 1] + tz * coef[7, 1]) + tz * coef[5, 1]) \
+        + ty * (coef[2, 1] + tz * coef[6, 1]) + tz * coef[3, 1]
+    w = coef[0, 2] + tx * (coef[1, 2] + ty * (coef[4, 2] + tz * coef[7, 2]) + tz * coef[5, 2]) \
+        + ty * (coef[2, 2] + tz * coef[6, 2]) + tz * coef[3, 2]
+    sp = math.sqrt(u * u + v * v + w * w)
+    if param == 0:
+        k[row, 0] = u
+        k[row, 1] = v
+        k[row, 2] = w
+        k[row, 3] = sp
+    else:
+        r = 1.0 / sp
+        k[row, 0] = u * r
+        k[row, 1] = v * r
+        k[row, 2] = w * r
+        k[row, 3] = r
+    return sp
+
+
+@njit(cache=True)
+def _move(a, up, c, per, vec, ci, cf, coef):
+    """Step the current cell through its face on axis a; 0 ok, 1 left the domain, 2 NaN cell."""
+    if up:
+        i = ci[a] + 1
+        if i >= _n_cells(c, per):
+            if per == 0.0:
+                return 1
+            i = 0
+        wdt = _width(c, per, i)
+        cf[a] = cf[3 + a]
+        cf[3 + a] = c[i + 1] if per == 0.0 else cf[a] + wdt
+    else:
+        i = ci[a] - 1
+        if i < 0:
+            if per == 0.0:
+                return 1
+            i = _n_cells(c, per) - 1
+        wdt = _width(c, per, i)
+        cf[3 + a] = cf[a]
+        cf[a] = c[i] if per == 0.0 else cf[3 + a] - wdt
+    ci[a] = i
+    cf[6 + a] = 1.0 / wdt
+    return 0 if _gather(vec, ci, coef) else 2
+
+
+# -- dense output -----------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _dense(sf, l, comp, q, y0, hs, th):
+    """y0 + hs * Σ_j Q[comp, j] θ^(j+1) from the coefficients stored in sf[l]."""
+    base = S_Q + comp * QMAX
+    acc = 0.0
+    for j in range(q - 1, -1, -1):
+        acc = acc * th + sf[l, base + j]
+    return y0 + hs * (th * acc)
+
+
+@njit(cache=True)
+def _root(sf, l, comp, q, y0, hs, target, sgn, thi):
+    """Smallest-bracket θ in (0, thi] where sgn * (dense - target) turns >= 0 (Illinois)."""
+    a = 0.0
+    ga = sgn * (y0 - target)
+    if ga > 0.0:
+        return 0.0
+    b = thi
+    gb = sgn * (_dense(sf, l, comp, q, y0, hs, b) - target)
+    if gb < 0.0:
+        return thi  # only rounding keeps the dense end short of the event
+    side = 0
+    for _ in range(100):
+        m = (a * gb - b * ga) / (gb - ga)
+        if not (m > a and m < b):
+            m = 0.5 * (a + b)
+        gm = sgn * (_dense(sf, l, comp, q, y0, hs, m) - target)
+        if gm >= 0.0:
+            b = m
+            gb = gm
+            if side == 1:
+                ga *= 0.5
+            side = 1
+        else:
+            a = m
+            ga = gm
+            if side == -1:
+                gb *= 0.5
+            side = -1
+        if b - a <= 1e-15 or gm == 0.0:
+            break
+    return b
+
+
+# -- output ---------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _put(out_p, out_par, out_n, slot, px, py, pz, t, s):
+    n = out_n[slot]
+    out_p[slot, n, 0] = px
+    out_p[slot, n, 1] = py
+    out_p[slot, n, 2] = pz
+    out_par[slot, n, 0] = t
+    out_par[slot, n, 1] = s
+    out_n[slot] = n + 1
+
+
+@njit(cache=True)
+def _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B):
+    """Emit the resampled vertices of the last step (and the final vertex once the line is done).
+
+    Returns False when the buffer filled up first (the line suspends; the rest stays pending).
+    """
+    if si[l, I_PEND] != 0:
+        hs = sf[l, S_HS]
+        th_end = sf[l, S_TH]
+        tau0 = sf[l, S_TAU0]
+        dep0 = sf[l, S_Y0 + 3]
+        s_end = sf[l, S_DEP] if param == 0 else sf[l, S_TAU]
+        while True:
+            m = si[l, I_M]
+            target = phase + m * spacing
+            if target > d * s_end:
+                break
+            if out_n[slot] >= B:
+                return False
+            if target == d * s_end:
+                px, py, pz = sf[l, S_Y], sf[l, S_Y + 1], sf[l, S_Y + 2]
+                t = sf[l, S_TAU] if param == 0 else sf[l, S_DEP]
+            else:
+                if param == 1:
+                    th = (d * target - tau0) / hs
+                else:
+                    th = _root(sf, l, 3, q, dep0, hs, d * target, d, th_end)
+                px = _dense(sf, l, 0, q, sf[l, S_Y0], hs, th)
+                py = _dense(sf, l, 1, q, sf[l, S_Y0 + 1], hs, th)
+                pz = _dense(sf, l, 2, q, sf[l, S_Y0 + 2], hs, th)
+                t = tau0 + th * hs if param == 0 else _dense(sf, l, 3, q, dep0, hs, th)
+            _put(out_p, out_par, out_n, slot, px, py, pz, t, d * target)
+            sf[l, S_LAST_S] = d * target
+            si[l, I_M] = m + 1
+        si[l, I_PEND] = 0
+    if si[l, I_FINAL] != 0:
+        s_end = sf[l, S_DEP] if param == 0 else sf[l, S_TAU]
+        t_end = sf[l, S_TAU] if param == 0 else sf[l, S_DEP]
+        dup = abs(sf[l, S_LAST_S] - s_end) <= 1e-9 * spacing
+        if dup and out_n[slot] > 0:
+            out_n[slot] -= 1  # replace a resampled vertex that coincides with the end
+        elif dup:
+            si[l, I_FINAL] = 0
+            return True
+        if out_n[slot] >= B:
+            return False
+        _put(out_p, out_par, out_n, slot, sf[l, S_Y], sf[l, S_Y + 1], sf[l, S_Y + 2], t_end, s_end)
+        sf[l, S_LAST_S] = s_end
+        si[l, I_FINAL] = 0
+    return True
+
+
+# -- one line -------------------------------------------------------------------------------------
+@njit(cache=True)
+def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
+                  mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B):
+    S, n_err, fs, adaptive, kexp, has_e2 = mi[0], mi[1], mi[2], mi[3] != 0, mi[4], mi[5] != 0
+    q = mp.shape[1]
+    param, aware, emit = io[P_PARAM], io[P_AWARE] != 0, io[P_EMIT]
+    max_steps = io[P_MAXSTEPS]
+    safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
+    hmin, hmax, cellfac, stag = fo[O_HMIN], fo[O_HMAX], fo[O_CELLFAC], fo[O_STAG]
+    lim_ind = fo[O_MAXTIME] if param == 0 else fo[O_MAXLEN]
+    lim_dep = fo[O_MAXLEN] if param == 0 else fo[O_MAXTIME]
+    r_ind = R_MAXTIME if param == 0 else R_MAXLEN
+    r_dep = R_MAXLEN if param == 0 else R_MAXTIME
+    expo1 = 1.0 / kexp - 0.75 * beta
+    d = dirs[l]
+    spacing, phase = spacings[l], phases[l]
+    out_n[slot] = 0
+    if si[l, I_STATUS] == DONE:  # only a pending emission left
+        _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
+        return
+    k = np.empty((S, 4))
+    coef = np.empty((8, 3))
+    cf = np.empty(9)
+    ci = np.full(3, -1, np.int64)
+    y = np.empty(4)
+    yt = np.empty(3)
+
+    if si[l, I_STATUS] == NEW:
+        px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
+        inside = math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)
+        for a in range(3):
+            c = gx if a == 0 else (gy if a == 1 else gz)
+            x = seeds[l, a]
+            if period[a] == 0.0 and not (c[0] <= x <= c[c.size - 1]):
+                inside = False
+        sp = np.nan
+        if inside:
+            _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+            sp = _f(px, py, pz, param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+        if not (inside and math.isfinite(sp)):
+            si[l, I_STATUS] = DONE
+            si[l, I_REASON] = R_SEED
+            return
+        y[0], y[1], y[2], y[3] = px, py, pz, 0.0
+        tau = 0.0
+        n_acc = 0
+        n_rej = 0
+        last_rej = False
+        errp = 1e-4
+        h = fo[O_H0]
+        if h <= 0.0 and sp > 0.0:
+            # Hairer's initial step (Hairer, Nørsett & Wanner I, II.4), on the position only
+            d0 = 0.0
+            d1 = 0.0
+            for a in range(3):
+                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a])
+                d0 += (y[a] / sc) ** 2
+                d1 += (k[0, a] / sc) ** 2
+            d0 = math.sqrt(d0 / 3.0)
+            d1 = math.sqrt(d1 / 3.0)
+            h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+            for a in range(3):
+                yt[a] = y[a] + d * h0 * k[0, a]
+            _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 1)
+            d2 = 0.0
+            for a in range(3):
+                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a])
+                d2 += ((k[1, a] - k[0, a]) / sc) ** 2
+            d2 = math.sqrt(d2 / 3.0) / h0
+            if max(d1, d2) <= 1e-15 or not math.isfinite(d2):
+                h1 = max(1e-6, h0 * 1e-3)
+            else:
+                h1 = (0.01 / max(d1, d2)) ** (1.0 / kexp)
+            h = min(100.0 * h0, h1)
+        elif h <= 0.0:
+            h = 1.0
+        h = d * min(h, hmax)
+        si[l, I_STATUS] = RUNNING
+        sf[l, S_LAST_S] = -np.inf
+        si[l, I_M] = 0
+        if emit == EMIT_STEPS or (emit == EMIT_SPACING and phase == 0.0):
+            _put(out_p, out_par, out_n, slot, px, py, pz, 0.0, 0.0)
+            sf[l, S_LAST_S] = 0.0
+            si[l, I_M] = 1 if emit == EMIT_SPACING else 0
+    else:
+        for a in range(3):
+            y[a] = sf[l, S_Y + a]
+        y[3] = sf[l, S_DEP]
+        tau = sf[l, S_TAU]
+        h = sf[l, S_H]
+        errp = sf[l, S_ERRP]
+        for a in range(4):
+            k[0, a] = sf[l, S_K0 + a]
+        n_acc = si[l, I_NACC]
+        n_rej = si[l, I_NREJ]
+        last_rej = si[l, I_LASTREJ] != 0
+        if aware:
+            for a in range(3):
+                ci[a] = si[l, I_CELL + a]
+                cf[a] = sf[l, S_LO + a]
+                cf[3 + a] = sf[l, S_HI + a]
+            cf[6] = 1.0 / _width(gx, period[0], ci[0])
+            cf[7] = 1.0 / _width(gy, period[1], ci[1])
+            cf[8] = 1.0 / _width(gz, period[2], ci[2])
+            _gather(vec, ci, coef)
+        if not _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B):
+            return
+
+    reason = -1
+    suspended = False
+    while True:
+        if out_n[slot] >= B:
+            suspended = True
+            break
+        speed = k[0, 3] if param == 0 else 1.0 / k[0, 3]
+        if not (speed >= stag) or speed == 0.0:
+            reason = R_STAG
+            break
+        if n_acc + n_rej >= max_steps:
+            reason = R_MAXSTEPS
+            break
+        # where the line stands: on a face moving outwards -> next cell, or out of the domain
+        stop = False
+        for a in range(3):
+            c = gx if a == 0 else (gy if a == 1 else gz)
+            mv = d * k[0, a]
+            if aware:
+                up = y[a] >= cf[3 + a] and mv > 0.0
+                if up or (y[a] <= cf[a] and mv < 0.0):
+                    y[a] = cf[3 + a] if up else cf[a]
+                    res = _move(a, up, c, period[a], vec, ci, cf, coef)
+                    if res != 0:
+                        reason = R_OUT if res == 1 else R_NAN
+                        stop = True
+                        break
+                    _f(y[0], y[1], y[2], param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+                else:  # rounding may leave the point a hair outside its cell: put it back
+                    y[a] = min(max(y[a], cf[a]), cf[3 + a])
+            elif period[a] == 0.0 and (
+                    (y[a] <= c[0] and mv < 0.0) or (y[a] >= c[c.size - 1] and mv > 0.0)):
+                reason = R_OUT
+                stop = True
+                break
+        if stop:
+            break
+
+        # step size: controller, cell cap, parameter limit
+        hs = h
+        if aware and adaptive:
+            t_exit = np.inf
+            for a in range(3):
+                mv = d * k[0, a]
+                if mv > 0.0:
+                    t_exit = min(t_exit, (cf[3 + a] - y[a]) / mv)
+                elif mv < 0.0:
+                    t_exit = min(t_exit, (y[a] - cf[a]) / -mv)
+            cap = cellfac * t_exit
+            if cap > 0.0 and abs(hs) > cap:
+                hs = d * cap
+        hit_lim = False
+        rem = lim_ind - abs(tau)
+        if abs(hs) >= rem:
+            hs = d * rem
+            hit_lim = True
+
+        # stages
+        for st in range(1, n_err):
+            for a in range(3):
+                acc = 0.0
+                for m in range(st):
+                    acc += ma[st, m] * k[m, a]
+                yt[a] = y[a] + hs * acc
+            _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+        y1x = y[0]
+        y1y = y[1]
+        y1z = y[2]
+        err = 0.0
+        finite = True
+        e5 = 0.0
+        e3 = 0.0
+        dep1 = 0.0
+        for a in range(4):
+            acc = 0.0
+            for m in range(n_err):
+                acc += mb[m] * k[m, a]
+            v1 = y[a] + hs * acc
+            if not math.isfinite(v1):
+                finite = False
+            if a == 0:
+                y1x = v1
+            elif a == 1:
+                y1y = v1
+            elif a == 2:
+                y1z = v1
+            else:
+                dep1 = v1
+            if adaptive and a < 3:
+                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(v1))
+                ea = 0.0
+                eb = 0.0
+                for m in range(n_err):
+                    ea += me[m] * k[m, a]
+                    eb += me2[m] * k[m, a]
+                e5 += (ea / sc) ** 2
+                e3 += (eb / sc) ** 2
+        if adaptive:
+            if has_e2:  # Hairer's DOP853 estimate: |e5|^2 / sqrt(|e5|^2 + 0.01 |e3|^2)
+                den = e5 + 0.01 * e3
+                err = 0.0 if den == 0.0 else abs(hs) * e5 / math.sqrt(den * 3.0)
+            else:
+                err = abs(hs) * math.sqrt(e5 / 3.0)
+            if not math.isfinite(err):
+                finite = False
+        if not finite:
+            # a stage met NaN data (or a zero speed in arc-length mode): retry shorter
+            n_rej += 1
+            h = 0.25 * hs
+            last_rej = True
+            if abs(h) < hmin:
+                reason = R_NAN
+                break
+            continue
+        if adaptive and err > 1.0:
+            n_rej += 1
+            h = hs * max(facmin, safety * err ** (-expo1))
+            last_rej = True
+            if abs(h) < hmin:
+                reason = R_UNDER
+                break
+            continue
+
+        # accepted: the remaining stages up to f(y1)
+        for st in range(n_err, fs + 1):
+            for a in range(3):
+                acc = 0.0
+                for m in range(st):
+                    acc += ma[st, m] * k[m, a]
+                yt[a] = y[a] + hs * acc
+            _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+        if not math.isfinite(k[fs, 0] + k[fs, 1] + k[fs, 2] + k[fs, 3]):
+            n_rej += 1  # y1 itself lies in a NaN cell
+            h = 0.25 * hs
+            last_rej = True
+            if abs(h) < hmin:
+                reason = R_NAN
+                break
+            continue
+        # next step size (Hairer's PI controller with Gustafsson's memory)
+        if adaptive:
+            if err == 0.0:
+                g = facmax
+            else:
+                g = min(facmax, max(facmin, safety * errp ** beta / err ** expo1))
+            if last_rej:
+                g = min(g, 1.0)
+            errp = max(err, 1e-4)
+            hnext = hs * g
+            if g >= 1.0 and abs(h) > abs(hnext):
+                hnext = h  # the step was cut by the cell cap or a limit, not by its error
+        else:
+            hnext = h
+        last_rej = False
+        hnext = d * min(abs(hnext), hmax)
+
+        # events inside the step, on the dense output
+        ev = EV_NONE
+        ev_axis = -1
+        ev_face = 0.0
+        need_face = False
+        for a in range(3):
+            v1 = y1x if a == 0 else (y1y if a == 1 else y1z)
+            c = gx if a == 0 else (gy if a == 1 else gz)
+            if aware:
+                if v1 < cf[a] or v1 > cf[3 + a]:
+                    need_face = True
+            elif period[a] == 0.0 and (v1 < c[0] or v1 > c[c.size - 1]):
+                need_face = True
+        need_dep = abs(dep1) >= lim_dep
+        if need_face or need_dep or emit == EMIT_SPACING:
+            for st in range(fs + 1, S):  # stages only the dense output uses
+                for a in range(3):
+                    acc = 0.0
+                    for m in range(st):
+                        acc += ma[st, m] * k[m, a]
+                    yt[a] = y[a] + hs * acc
+                _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+            for a in range(4):
+                for j in range(q):
+                    acc = 0.0
+                    for m in range(S):
+                        acc += mp[m, j] * k[m, a]
+                    sf[l, S_Q + a * QMAX + j] = acc
+        th = 1.0
+        if need_face:
+            for a in range(3):
+                v1 = y1x if a == 0 else (y1y if a == 1 else y1z)
+                c = gx if a == 0 else (gy if a == 1 else gz)
+                if aware:
+                    lo_a, hi_a = cf[a], cf[3 + a]
+                elif period[a] == 0.0:
+                    lo_a, hi_a = c[0], c[c.size - 1]
+                else:
+                    continue
+                if v1 < lo_a:
+                    tha = _root(sf, l, a, q, y[a], hs, lo_a, -1.0, 1.0)
+                    face = lo_a
+                elif v1 > hi_a:
+                    tha = _root(sf, l, a, q, y[a], hs, hi_a, 1.0, 1.0)
+                    face = hi_a
+                else:
+                    continue
+                if tha < th or ev == EV_NONE:
+                    th = tha
+                    ev_axis = a
+                    ev_face = face
+                    ev = EV_FACE
+        if need_dep:
+            thd = _root(sf, l, 3, q, y[3], hs, d * lim_dep, d, 1.0)
+            if ev == EV_NONE or thd < th:
+                th = thd
+                ev = EV_DEPLIM
+        if ev == EV_FACE and not aware:
+            ev = EV_BOUNDARY
+        # commit the step
+        n_acc += 1
+        tau0 = tau
+        if emit == EMIT_SPACING:
+            for a in range(4):
+                sf[l, S_Y0 + a] = y[a]
+            sf[l, S_TAU0] = tau
+            sf[l, S_HS] = hs
+            sf[l, S_TH] = th
+        if ev == EV_NONE:
+            y[0], y[1], y[2], y[3] = y1x, y1y, y1z, dep1
+            tau = d * lim_ind if hit_lim else tau + hs
+            for a in range(4):
+                k[0, a] = k[fs, a]
+        else:
+            ynew0 = _dense(sf, l, 0, q, y[0], hs, th)
+            ynew1 = _dense(sf, l, 1, q, y[1], hs, th)
+            ynew2 = _dense(sf, l, 2, q, y[2], hs, th)
+            ydep = d * lim_dep if ev == EV_DEPLIM else _dense(sf, l, 3, q, y[3], hs, th)
+            y[0], y[1], y[2], y[3] = ynew0, ynew1, ynew2, ydep
+            if ev == EV_FACE or ev == EV_BOUNDARY:
+                y[ev_axis] = ev_face
+            tau = tau + th * hs
+            hit_lim = False
+            if ev == EV_FACE:
+                # through the face (whatever the velocity there says); start afresh in the new cell
+                c = gx if ev_axis == 0 else (gy if ev_axis == 1 else gz)
+                res = _move(ev_axis, ev_face == cf[3 + ev_axis], c, period[ev_axis], vec, ci, cf, coef)
+                if res == 1:
+                    ev = EV_BOUNDARY
+                elif res == 2:
+                    reason = R_NAN
+                else:
+                    _f(y[0], y[1], y[2], param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+        if ev == EV_BOUNDARY:
+            reason = R_OUT
+        elif ev == EV_DEPLIM:
+            reason = r_dep
+        elif hit_lim:
+            reason = r_ind
+        h = hnext
+        if emit == EMIT_STEPS:
+            if th * hs != 0.0 or tau0 != tau:
+                t_out = tau if param == 0 else y[3]
+                s_out = y[3] if param == 0 else tau
+                _put(out_p, out_par, out_n, slot, y[0], y[1], y[2], t_out, s_out)
+        elif emit == EMIT_SPACING:
+            si[l, I_PEND] = 1
+            sf[l, S_DEP] = y[3]
+            sf[l, S_TAU] = tau
+            for a in range(3):
+                sf[l, S_Y + a] = y[a]
+            if not _emit_pending(l, slot, sf, si, d, param, q, spacing, phase,
+                                 out_p, out_par, out_n, B):
+                if reason >= 0:
+                    si[l, I_FINAL] = 1
+                    si[l, I_REASON] = reason
+                    si[l, I_STATUS] = DONE
+                    reason = -2  # done, final vertex still pending
+                suspended = True
+                break
+        if reason >= 0:
+            break
+
+    # save the state
+    for a in range(3):
+        sf[l, S_Y + a] = y[a]
+        sf[l, S_LO + a] = cf[a]
+        sf[l, S_HI + a] = cf[3 + a]
+        si[l, I_CELL + a] = ci[a]
+    sf[l, S_DEP] = y[3]
+    sf[l, S_TAU] = tau
+    sf[l, S_H] = h
+    sf[l, S_ERRP] = errp
+    for a in range(4):
+        sf[l, S_K0 + a] = k[0, a]
+    si[l, I_NACC] = n_acc
+    si[l, I_NREJ] = n_rej
+    si[l, I_LASTREJ] = 1 if last_rej else 0
+    if suspended:
+        return
+    si[l, I_STATUS] = DONE
+    si[l, I_REASON] = reason
+    if emit != EMIT_STEPS:
+        si[l, I_FINAL] = 1
+        _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
+
+
+@njit(cache=True, parallel=True)
+def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
+            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
+    """Advance the lines ``active`` until each is done or has filled its B output slots."""
+    B = out_p.shape[1]
+    for n in prange(active.size):
+        _advance_line(active[n], n, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
+                      mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B)

@@ -1,0 +1,137 @@
+"""TraceOptions: everything a trace needs besides the field and the seeds, validated up front."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from .methods import get_method
+
+DIRECTIONS = ("forward", "backward", "both")
+PARAMETERS = ("time", "arc_length")
+
+
+class OptionsError(ValueError):
+    """An option value that cannot be used; the message names the option and the value."""
+
+
+@dataclass(frozen=True)
+class TraceOptions:
+    """Options of :func:`flowkit.trace`.  ``None`` means "derived from the field" (see below).
+
+    method       dopri5 (default), cashkarp, bs23, dop853 (adaptive); rk4, euler (fixed step)
+    rtol, atol   relative/absolute tolerance, a number or one per component (x, y, z); the error
+                 of a step is the RMS over components of err_i / (atol_i + rtol_i * |y_i|).
+                 atol None: rtol times the largest extent of the grid.
+    step         initial step (adaptive; None: Hairer's automatic choice) or the fixed step
+                 (rk4, euler; None: half the smallest cell, in time at the typical speed);
+                 in units of the parameter (time, or arc length).
+    min_step     a step the controller wants below this ends the line (step_underflow);
+                 None: 1e-10 of the smallest cell crossing
+    max_step     upper bound on any step (None: none)
+    max_steps    attempted steps (accepted + rejected) per line and direction
+    max_length, max_time   met exactly (per direction)
+    direction    forward, backward or both (one line through the seed)
+    parameter    time (dx/dt = v) or arc_length (dx/ds = v / |v|)
+    cell_aware   steps end on the faces of the cell they start in (see docs/integrator.md)
+    stagnation   absolute speed below which a line stops; None: stagnation_rel * typical speed
+    spacing      resample vertices every `spacing` of arc length (dense output)
+    count        resample each line to `count` vertices evenly spaced in arc length
+    attributes   per-vertex attributes to compute (see flowkit.integrate.attributes)
+    budget       vertices per line kept in one kernel pass (None: from a 128 MiB buffer);
+                 longer lines continue in later passes, never truncated
+    """
+
+    method: str = "dopri5"
+    rtol: float | tuple = 1e-6
+    atol: float | tuple | None = None
+    step: float | None = None
+    min_step: float | None = None
+    max_step: float | None = None
+    max_steps: int = 100_000
+    max_length: float = math.inf
+    max_time: float = math.inf
+    direction: str = "forward"
+    parameter: str = "time"
+    cell_aware: bool = True
+    stagnation: float | None = None
+    stagnation_rel: float = 1e-6
+    spacing: float | None = None
+    count: int | None = None
+    attributes: tuple = ()
+    safety: float = 0.9
+    min_factor: float = 0.2
+    max_factor: float = 10.0
+    beta: float = 0.04
+    budget: int | None = None
+    progress: bool | None = None
+
+    def __post_init__(self):
+        m = get_method(self.method)
+        object.__setattr__(self, "method", m.name)
+        object.__setattr__(self, "rtol", _tol("rtol", self.rtol, positive=True))
+        if self.atol is not None:
+            object.__setattr__(self, "atol", _tol("atol", self.atol, positive=False))
+        for name in ("step", "min_step", "max_step", "stagnation", "spacing"):
+            v = getattr(self, name)
+            if v is not None and not (_num(v) and v > 0 and math.isfinite(v)):
+                raise OptionsError(f"option {name} must be a positive finite number, got {v!r}")
+        if self.stagnation == 0:
+            raise OptionsError("option stagnation must be positive")
+        for name in ("max_length", "max_time"):
+            v = getattr(self, name)
+            if not (_num(v) and v > 0):
+                raise OptionsError(f"option {name} must be positive (inf for no limit), got {v!r}")
+        if not (isinstance(self.max_steps, (int, np.integer)) and self.max_steps >= 1):
+            raise OptionsError(f"option max_steps must be an integer >= 1, got {self.max_steps!r}")
+        if self.direction not in DIRECTIONS:
+            raise OptionsError(f"option direction must be one of {DIRECTIONS}, got {self.direction!r}")
+        par = {"arc": "arc_length", "length": "arc_length"}.get(self.parameter, self.parameter)
+        if par not in PARAMETERS:
+            raise OptionsError(f"option parameter must be one of {PARAMETERS}, got {self.parameter!r}")
+        object.__setattr__(self, "parameter", par)
+        if self.spacing is not None and self.count is not None:
+            raise OptionsError("options spacing and count exclude each other; give one")
+        if self.count is not None and not (isinstance(self.count, (int, np.integer)) and self.count >= 2):
+            raise OptionsError(f"option count must be an integer >= 2, got {self.count!r}")
+        if self.budget is not None and not (isinstance(self.budget, (int, np.integer)) and self.budget >= 2):
+            raise OptionsError(f"option budget must be an integer >= 2, got {self.budget!r}")
+        attrs = self.attributes
+        if isinstance(attrs, str):
+            attrs = [a for a in attrs.split(",") if a.strip()]
+        object.__setattr__(self, "attributes", tuple(a.strip() for a in attrs))
+        if not (0 < self.safety <= 1):
+            raise OptionsError(f"option safety must be in (0, 1], got {self.safety!r}")
+        if not (0 < self.min_factor < 1 < self.max_factor):
+            raise OptionsError(
+                f"options min_factor < 1 < max_factor required, got {self.min_factor!r}, {self.max_factor!r}")
+        if not (0 <= self.beta < 0.2):
+            raise OptionsError(f"option beta must be in [0, 0.2), got {self.beta!r}")
+        if not (0 < self.stagnation_rel < 1):
+            raise OptionsError(f"option stagnation_rel must be in (0, 1), got {self.stagnation_rel!r}")
+
+    def replace(self, **kw) -> TraceOptions:
+        unknown = set(kw) - {f.name for f in fields(self)}
+        if unknown:
+            raise OptionsError(f"unknown trace option(s): {', '.join(sorted(unknown))}")
+        return replace(self, **kw)
+
+    @property
+    def method_obj(self):
+        return get_method(self.method)
+
+
+def _num(v) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+
+def _tol(name, v, positive):
+    a = np.broadcast_to(np.asarray(v, dtype=float), (3,)) if np.ndim(v) <= 1 else None
+    if a is None or (np.ndim(v) == 1 and np.size(v) != 3):
+        raise OptionsError(f"option {name} must be a number or 3 numbers (x, y, z), got {v!r}")
+    ok = np.all(np.isfinite(a)) and (np.all(a > 0) if positive else np.all(a >= 0))
+    if not ok:
+        raise OptionsError(f"option {name} must be {'positive' if positive else 'non-negative'} and finite, got {v!r}")
+    return float(a[0]) if np.all(a == a[0]) else tuple(float(x) for x in a)

@@ -1,0 +1,260 @@
+"""The public tracing API: ``trace`` (Lines in memory) and ``trace_to_file`` (streamed to HDF5).
+
+Seeds are traced in batches; each batch runs the numba kernel in passes: a pass advances every
+unfinished line until it ends or fills its vertex budget, the host keeps the vertices and
+relaunches the unfinished lines (nothing is ever truncated).  With ``count`` a first pass only
+measures each line's length, a second resamples it.  ``direction="both"`` traces two half-lines
+per seed and joins them through the seed: vertices ordered along the line, time and arc length
+negative before the seed.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from ..fields import Field
+from ..lines import Lines
+from . import attributes as _attributes
+from . import kernel as K
+from .options import TraceOptions
+from .reasons import REASON_NAMES
+
+BUFFER_BYTES = 128 << 20  # output buffer of one pass: (tasks, budget) vertices of 40 bytes
+BATCH_SEEDS = 16384
+CELL_CAP = 1.25  # cell-aware steps: at most this times the straight-line time to the exit face
+PROGRESS_MIN_SEEDS = 20000
+
+
+def trace(field: Field, seeds, options: TraceOptions | None = None, **kw) -> Lines:
+    """Streamlines of ``field`` from ``seeds`` ((n, 3) or (3,)); ``kw`` overrides ``options``."""
+    opts = _options(options, kw)
+    seeds = _seeds(seeds)
+    parts = list(_batches(field, seeds, opts))
+    lines = Lines.concatenate(parts) if parts else _empty(field, opts)
+    lines.attrs = _attrs(field, opts)
+    return lines
+
+
+def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None, *,
+                  batch_seeds: int = BATCH_SEEDS, position_dtype="float32", **kw):
+    """Trace and stream each batch of ``batch_seeds`` seeds to the HDF5 file ``path``.
+
+    Peak memory ~ one batch: the output buffer (BUFFER_BYTES, 128 MiB) plus that batch's lines
+    and attributes, whatever the number of seeds.  The file appears atomically when complete.
+    Returns the path.
+    """
+    from ..io.lines_h5 import LinesWriter
+
+    opts = _options(options, kw)
+    seeds = _seeds(seeds)
+    writer = None
+    try:
+        for part in _batches(field, seeds, opts, batch_seeds):
+            part.attrs = _attrs(field, opts)
+            if writer is None:
+                writer = LinesWriter.like(part, path, position_dtype=position_dtype)
+            writer.append(part)
+        if writer is None:
+            empty = _empty(field, opts)
+            empty.attrs = _attrs(field, opts)
+            writer = LinesWriter.like(empty, path, position_dtype=position_dtype)
+        return writer.close()
+    except BaseException:
+        if writer is not None:
+            writer.abort()
+        raise
+
+
+# -- internals --------------------------------------------------------------------------------
+def _options(options, kw) -> TraceOptions:
+    opts = options if options is not None else TraceOptions()
+    if not isinstance(opts, TraceOptions):
+        raise TypeError(f"options must be a TraceOptions, got {type(opts).__name__}")
+    return opts.replace(**kw) if kw else opts
+
+
+def _seeds(seeds) -> np.ndarray:
+    s = np.asarray(seeds, dtype=np.float64)
+    if s.ndim == 1 and s.size == 3:
+        s = s[None, :]
+    if s.ndim != 2 or s.shape[1] != 3:
+        raise ValueError(f"seeds must have shape (n, 3), got {np.shape(seeds)}")
+    return np.ascontiguousarray(s)
+
+
+def _attrs(field: Field, opts: TraceOptions) -> dict:
+    return {
+        "method": opts.method, "rtol": str(opts.rtol), "atol": str(opts.atol),
+        "parameter": opts.parameter, "direction": opts.direction,
+        "cell_aware": int(opts.cell_aware), "max_length": opts.max_length, "max_time": opts.max_time,
+        "max_steps": opts.max_steps, "source": str(field.source), "reason_names": ",".join(REASON_NAMES),
+    }
+
+
+def _empty(field, opts) -> Lines:
+    pd = {}
+    for n in opts.attributes:
+        pd[n] = np.zeros((0, 3)) if n in ("velocity", "vorticity") else np.zeros(0)
+    ld = {"seed_id": np.zeros(0, np.int64), "reason": np.zeros(0, np.int8),
+          "n_accepted": np.zeros(0, np.int32), "n_rejected": np.zeros(0, np.int32)}
+    if opts.direction == "both":
+        ld["reason_backward"] = np.zeros(0, np.int8)
+    return Lines(np.zeros((0, 3)), np.zeros(1, np.int64), pd, ld)
+
+
+class _Setup:
+    """Kernel arguments derived once per trace from the field and the options."""
+
+    def __init__(self, field: Field, opts: TraceOptions):
+        _attributes.check(field, opts.attributes)
+        g = field.grid
+        m = opts.method_obj
+        if m.p.shape[1] > K.QMAX:
+            raise ValueError(f"method {m.name}: dense output degree {m.p.shape[1]} > {K.QMAX}")
+        self.method = m
+        self.grid = g.kernel_args()
+        self.vec = field.vector
+        ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
+        cell = g.min_cell_size
+        vtyp = field.typical_speed()
+        # time needed to cross the smallest cell at the typical speed (or its arc length)
+        cross = cell if opts.parameter == "arc_length" else cell / (vtyp if vtyp > 0 else 1.0)
+        fo = np.zeros(K.NFO)
+        fo[K.O_RTOL:K.O_RTOL + 3] = opts.rtol
+        fo[K.O_ATOL:K.O_ATOL + 3] = opts.rtol if opts.atol is None else opts.atol
+        if opts.atol is None:
+            fo[K.O_ATOL:K.O_ATOL + 3] *= ext
+        fo[K.O_SAFETY], fo[K.O_FACMIN], fo[K.O_FACMAX] = opts.safety, opts.min_factor, opts.max_factor
+        fo[K.O_BETA] = opts.beta
+        if m.adaptive:
+            fo[K.O_H0] = opts.step or 0.0
+        else:
+            fo[K.O_H0] = opts.step if opts.step is not None else 0.5 * cross
+        fo[K.O_HMIN] = opts.min_step if opts.min_step is not None else 1e-10 * cross
+        fo[K.O_HMAX] = opts.max_step if opts.max_step is not None else np.inf
+        fo[K.O_MAXLEN], fo[K.O_MAXTIME] = opts.max_length, opts.max_time
+        fo[K.O_STAG] = opts.stagnation if opts.stagnation is not None else opts.stagnation_rel * vtyp
+        fo[K.O_CELLFAC] = CELL_CAP
+        self.fo = fo
+        io = np.zeros(K.NIO, np.int64)
+        io[K.P_MAXSTEPS] = opts.max_steps
+        io[K.P_PARAM] = 1 if opts.parameter == "arc_length" else 0
+        io[K.P_AWARE] = int(opts.cell_aware)
+        self.io = io
+
+    def run(self, seeds, dirs, emit, spacing, phase, budget, on_pass=None):
+        """Run tasks to completion; returns (points, t, s, owner, si) with vertices grouped by
+        task in order along each task's half-line."""
+        n = seeds.shape[0]
+        io = self.io.copy()
+        io[K.P_EMIT] = emit
+        sf = np.zeros((n, K.NF))
+        si = np.zeros((n, K.NI), np.int64)
+        active = np.arange(n, dtype=np.int64)
+        chunks_p, chunks_par, chunks_owner = [], [], []
+        while active.size:
+            B = budget or int(min(4096, max(16, BUFFER_BYTES // (40 * active.size))))
+            if emit == K.EMIT_FINAL:
+                B = 2
+            out_p = np.empty((active.size, B, 3))
+            out_par = np.empty((active.size, B, 2))
+            out_n = np.zeros(active.size, np.int64)
+            K.advance(active, seeds, dirs, spacing, phase, *self.grid, self.vec,
+                      *self.method.kernel_arrays(), self.fo, io, sf, si, out_p, out_par, out_n)
+            keep = np.arange(B)[None, :] < out_n[:, None]
+            chunks_p.append(out_p[keep])
+            chunks_par.append(out_par[keep])
+            chunks_owner.append(np.repeat(active, out_n))
+            sub = si[active]
+            busy = (sub[:, K.I_STATUS] != K.DONE) | (sub[:, K.I_PEND] != 0) | (sub[:, K.I_FINAL] != 0)
+            if on_pass is not None:
+                on_pass(int(active.size - busy.sum()))
+            active = active[busy]
+        owner = np.concatenate(chunks_owner)
+        order = np.argsort(owner, kind="stable")
+        par = np.concatenate(chunks_par)[order]
+        return np.concatenate(chunks_p)[order], par[:, 0], par[:, 1], owner[order], si
+
+
+def _batches(field, seeds, opts, batch_seeds=BATCH_SEEDS):
+    setup = _Setup(field, opts)
+    n = seeds.shape[0]
+    show = opts.progress if opts.progress is not None else (n >= PROGRESS_MIN_SEEDS and sys.stderr.isatty())
+    bar = None
+    if show:
+        from tqdm import tqdm
+        bar = tqdm(total=n, unit="seed", desc="trace", smoothing=0.1)
+    try:
+        for start in range(0, n, batch_seeds):
+            part = _trace_batch(field, setup, seeds[start:start + batch_seeds], opts, start)
+            if bar is not None:
+                bar.update(len(part))
+            yield part
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> Lines:
+    n = seeds.shape[0]
+    both = opts.direction == "both"
+    if both:  # task 2i: backward half, 2i + 1: forward half
+        tseeds = np.repeat(seeds, 2, axis=0)
+        dirs = np.tile(np.array([-1.0, 1.0]), n)
+    else:
+        tseeds = seeds
+        dirs = np.full(n, -1.0 if opts.direction == "backward" else 1.0)
+    nt = tseeds.shape[0]
+    spacing = np.zeros(nt)
+    phase = np.zeros(nt)
+    emit = K.EMIT_STEPS
+    if opts.spacing is not None:
+        emit = K.EMIT_SPACING
+        spacing[:] = opts.spacing
+    elif opts.count is not None:
+        # pass 1 measures each half-line's length; pass 2 resamples the whole line evenly
+        emit = K.EMIT_SPACING
+        _, _, s1, owner1, _si1 = setup.run(tseeds, dirs, K.EMIT_FINAL, spacing, phase, None)
+        length = np.zeros(nt)
+        length[owner1] = np.abs(s1)
+        if both:
+            lb, lf = length[0::2], length[1::2]
+            total = lb + lf
+            step = np.where(total > 0, total / (opts.count - 1), 1.0)
+            # vertices at -lb + j * step: forward from the first j with -lb + j step >= 0
+            jf = np.ceil(lb / step - 1e-12)
+            phf = np.maximum(jf * step - lb, 0.0)
+            spacing[0::2] = spacing[1::2] = step
+            phase[1::2] = phf
+            phase[0::2] = np.where(phf > 0, step - phf, step)
+        else:
+            spacing[:] = np.where(length > 0, length / (opts.count - 1), 1.0)
+
+    pts, t, s, owner, si = setup.run(tseeds, dirs, emit, spacing, phase, opts.budget)
+    counts = np.bincount(owner, minlength=nt)
+    rank = np.arange(owner.size) - (np.cumsum(counts) - counts)[owner]
+    reason = si[:, K.I_REASON].astype(np.int8)
+    nacc = si[:, K.I_NACC].astype(np.int32)
+    nrej = si[:, K.I_NREJ].astype(np.int32)
+    ld = {"seed_id": np.arange(id0, id0 + n, dtype=np.int64)}
+    if both:
+        line = owner // 2
+        fwd = owner % 2
+        keep = (fwd == 1) | (s != 0.0)  # the seed appears once, in the forward half
+        order = np.lexsort((np.where(fwd == 1, rank, -rank)[keep], fwd[keep], line[keep]))
+        idx = np.flatnonzero(keep)[order]
+        line_of = line[idx]
+        ld.update(reason=reason[1::2], n_accepted=nacc[0::2] + nacc[1::2],
+                  n_rejected=nrej[0::2] + nrej[1::2], reason_backward=reason[0::2])
+    else:
+        idx = np.arange(owner.size)
+        line_of = owner
+        ld.update(reason=reason, n_accepted=nacc, n_rejected=nrej)
+    pts, t, s = pts[idx], t[idx], s[idx]
+    offsets = np.concatenate([[0], np.cumsum(np.bincount(line_of, minlength=n))])
+    seed_of = seeds[line_of]
+    pd = _attributes.compute(field, opts.attributes, pts, t, s, seed_of) if opts.attributes else {}
+    return Lines(pts, offsets, pd, ld)
+
