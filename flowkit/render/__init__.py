@@ -2,9 +2,10 @@
 
 from .camera import Camera
 from .context import RenderContextError, create_context, default_context
-from .renderer import LineRenderer, render_lines, save_png
+from .renderer import LineRenderer, render_file, render_lines, save_png
 from .style import Band, ColorMap, LineStyle, Style, StyleError, WidthMap, load_style
 
 __all__ = ["Band", "Camera", "ColorMap", "LineRenderer", "LineStyle", "RenderContextError",
            "Style", "StyleError", "WidthMap", "create_context", "default_context", "load_style",
-           "render_lines", "save_png"]
+           "render_file", "render_lines",
+           "save_png"]

@@ -9,12 +9,13 @@ draws into a multisampled framebuffer that is resolved and read back.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
+from typing import Self
 
 import moderngl
 import numpy as np
 
+from ..io.atomic import atomic_path
 from ..lines import Lines
 from .camera import Camera
 from .colormaps import colormap_texture
@@ -71,6 +72,27 @@ class LineRenderer:
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._fbos: dict[tuple, tuple] = {}
         self.programs = program_cache(self.ctx)
+
+    def release(self) -> None:
+        """Free this renderer's buffers and framebuffers (programs stay cached on the context)."""
+        for obj in [*self._vaos.values(), *self._attrs.values(), self._pos, self._ibo]:
+            if obj is not None:
+                obj.release()
+        for ms, out in self._fbos.values():
+            for fbo in (ms, out):
+                if fbo is not None:
+                    for att in (*fbo.color_attachments, fbo.depth_attachment):
+                        att.release()
+                    fbo.release()
+        self._vaos.clear()
+        self._attrs.clear()
+        self._fbos.clear()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
 
     # -- geometry -------------------------------------------------------------------------------
     def uploaded_attributes(self) -> list[str]:
@@ -238,25 +260,26 @@ def render_lines(lines: Lines, style: Style | str | os.PathLike, size=(1920, 108
     ``camera`` overrides the style's camera.  Uses a headless EGL context unless ``ctx`` is given.
     To draw the same lines many times, keep a ``LineRenderer``."""
     style = _as_style(style)
-    return LineRenderer(lines, ctx).render(style, size, camera)
+    with LineRenderer(lines, ctx) as r:
+        return r.render(style, size, camera)
 
 
 def save_png(image: np.ndarray, path: str | os.PathLike) -> Path:
-    """Write an (H, W, 3|4) uint8 image as PNG atomically (temp file + rename)."""
+    """Write an (H, W, 3|4) uint8 image as PNG atomically (temp file beside it + rename)."""
     from PIL import Image
 
     img = np.asarray(image)
     if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] not in (3, 4):
         raise ValueError(f"save_png needs an (H, W, 3 or 4) uint8 array, got {img.dtype} {img.shape}")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".png.tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            Image.fromarray(img, "RGBA" if img.shape[2] == 4 else "RGB").save(f, format="PNG")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    with atomic_path(path) as tmp:
+        Image.fromarray(img, "RGBA" if img.shape[2] == 4 else "RGB").save(tmp, format="PNG")
+    return Path(path)
+
+
+def render_file(path: str | os.PathLike, style: Style | str | os.PathLike, size=(1920, 1080),
+                camera: Camera | None = None, ctx: moderngl.Context | None = None) -> np.ndarray:
+    """Render a lines HDF5 file, reading only the geometry and the attributes the style uses."""
+    from ..io.lines_h5 import read_lines
+
+    style = _as_style(style)
+    return render_lines(read_lines(path, attributes=style.attributes()), style, size, camera, ctx)

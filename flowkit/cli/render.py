@@ -1,0 +1,74 @@
+"""``flowkit render lines.h5 --style style.toml -o out.png --size 1920x1080 [camera options]``"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+
+from . import CLIError
+
+
+def _size(text: str) -> tuple[int, int]:
+    m = re.fullmatch(r"(\d+)[xX](\d+)", text)
+    if not m or int(m[1]) < 1 or int(m[2]) < 1:
+        raise CLIError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 1920x1080")
+    return int(m[1]), int(m[2])
+
+
+def _vec3(name: str, text: str | None):
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        vals = tuple(float(p) for p in parts)
+    except ValueError:
+        vals = ()
+    if len(vals) != 3:
+        raise CLIError(f"--{name} {text!r}: expected three numbers x,y,z")
+    return vals
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("render", help="render a lines file to PNG with a line style",
+                              description=__doc__)
+    p.add_argument("lines", help="lines HDF5 file (flowkit trace output)")
+    p.add_argument("--style", required=True, help="TOML style file (see examples/styles/)")
+    p.add_argument("-o", "--output", required=True, help="PNG to write (atomically)")
+    p.add_argument("--size", default="1920x1080", help="WIDTHxHEIGHT in pixels (default 1920x1080)")
+    p.add_argument("--supersample", type=int, help="render k times larger and average (print)")
+    p.add_argument("--context", choices=["egl", "standalone"], default="egl",
+                   help="OpenGL context: headless EGL (default) or the platform default")
+    cam = p.add_argument_group("camera (overrides the style file's [camera])")
+    cam.add_argument("--azimuth", type=float, help="degrees about the up axis")
+    cam.add_argument("--elevation", type=float, help="degrees above the horizontal plane")
+    cam.add_argument("--distance", type=float, help="eye distance from the target (default: fit)")
+    cam.add_argument("--zoom", type=float, help="magnification of the fitted view")
+    cam.add_argument("--fov", type=float, help="vertical field of view in degrees")
+    cam.add_argument("--projection", choices=["perspective", "orthographic"])
+    cam.add_argument("--target", help="x,y,z looked at (default: centre of the lines' bounds)")
+    cam.add_argument("--up", help="x,y,z up direction (default 0,0,1)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..render import create_context, load_style, render_file, save_png
+    from ..render.style import camera_from_dict
+
+    size = _size(args.size)
+    style = load_style(args.style)
+    over = {k: getattr(args, k) for k in ("azimuth", "elevation", "distance", "zoom", "fov",
+                                          "projection") if getattr(args, k) is not None}
+    for k in ("target", "up"):
+        v = _vec3(k, getattr(args, k))
+        if v is not None:
+            over[k] = list(v)
+    # the same validation as the style file's [camera] table, naming the option
+    checked = camera_from_dict("command line camera option", over)
+    camera = dataclasses.replace(style.camera, **{k: getattr(checked, k) for k in over})
+    if args.supersample is not None:
+        style = dataclasses.replace(style, supersample=args.supersample)
+    ctx = create_context(args.context)
+    image = render_file(args.lines, style, size, camera, ctx)
+    path = save_png(image, args.output)
+    print(f"wrote {path} ({size[0]}x{size[1]})")
+    return 0
