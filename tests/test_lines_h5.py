@@ -392,6 +392,12 @@ def test_writer_rejects_bad_schemas(tmp_path):
     with pytest.raises(ValueError, match="metadata 'handle'"):
         LinesWriter(path, attrs={"handle": object()})
     assert list(tmp_path.iterdir()) == []
+    with pytest.raises(ValueError, match="'reason' must hold integer"):
+        LinesWriter(path, line_attributes={"reason": "f4"})
+    bad = make_lines([2, 2])
+    bad.line_data["reason"][:] = [1, 42]
+    with pytest.raises(ValueError, match=r"reason codes \[42\]"):
+        write_lines(bad, path)
     with LinesWriter(path, {"speed": "float32"}) as w:
         with pytest.raises(ValueError, match="'speed'.*float32"):
             w.append(Lines(np.zeros((2, 3)), [0, 2], {"speed": np.zeros((2, 3))}))

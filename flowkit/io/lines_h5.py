@@ -89,6 +89,9 @@ class LinesWriter:
     peak memory is about one appended chunk (plus its int64 connectivity, and HDF5's chunk cache
     of 1 MiB per dataset), whatever the total size of the file.
 
+    ``attrs`` is run metadata for the root (str, numbers, arrays natively; lists, dicts and None
+    as JSON); ``attrs["length_units"]``, if given, becomes the units of x, y, z (default "1").
+
     The file is written under a temporary name in the same directory and renamed onto ``path``
     by ``close()``; if the ``with`` block raises (or ``abort()`` is called) the temporary file is
     removed and an existing file at ``path`` is left untouched.
@@ -117,6 +120,9 @@ class LinesWriter:
         if compression not in _COMPRESSION:
             raise ValueError(f"{self.path}: compression must be 'gzip', 'lzf' or None, "
                              f"got {compression!r}")
+        if "reason" in self.line_schema and self.line_schema["reason"][0].kind not in "iu":
+            raise ValueError(f"{self.path}: line attribute 'reason' must hold integer codes "
+                             f"(flowkit.integrate.reasons.Reason), got {self.line_schema['reason'][0]}")
         self.attrs = dict(attrs or {})
         self._synthesize_seed_id = "seed_id" not in self.line_schema
         self.n_points = self.n_lines = 0
@@ -209,6 +215,11 @@ class LinesWriter:
             raise TypeError(f"{self.path}: append() takes Lines, got {type(lines).__name__}")
         _check_chunk(lines.point_data, self.point_schema, "point", self.path)
         _check_chunk(lines.line_data, self.line_schema, "line", self.path)
+        if "reason" in lines.line_data:
+            unknown = np.setdiff1d(lines.line_data["reason"], [r.value for r in Reason])
+            if unknown.size:
+                raise ValueError(f"{self.path}: reason codes {unknown.tolist()} are not "
+                                 f"flowkit.integrate.reasons.Reason values")
         n0, l0 = self.n_points, self.n_lines
         n1, l1 = n0 + lines.n_points, l0 + len(lines)
         _put(self._points, n0, n1, lines.points)
