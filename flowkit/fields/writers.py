@@ -30,6 +30,9 @@ def atomic_path(path):
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
     os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file ordinary permissions
     try:
         yield Path(tmp)
         os.replace(tmp, path)
@@ -87,9 +90,12 @@ def _write_npz(field, path, dtype):
 
 
 # -- HDF5 ------------------------------------------------------------------------------------
-def save_series(fields, path, *, dtype=None, compression="gzip", single=False) -> Path:
+def save_series(
+    fields, path, *, dtype=None, compression="gzip", single=False, attrs=None
+) -> Path:
     """Write fields sharing one grid into one flowkit HDF5 file (layout in readers/hdf5.py):
-    /snapshots/NNNN groups, or with ``single=True`` and one field the single-snapshot layout."""
+    /snapshots/NNNN groups, or with ``single=True`` and one field the single-snapshot layout.
+    ``attrs`` adds root attributes (e.g. provenance)."""
     fields = list(fields)
     path = Path(path)
     if not fields:
@@ -105,6 +111,7 @@ def save_series(fields, path, *, dtype=None, compression="gzip", single=False) -
         h.attrs["flowkit_format"] = FORMAT
         h.attrs["flowkit_format_version"] = FORMAT_VERSION
         h.attrs["vector_name"] = fields[0].vector_name
+        h.attrs.update(attrs or {})
         if any(g0.periodic):
             h.attrs["period"] = np.array(g0.period)
         for name, c in zip("xyz", g0.axes):
