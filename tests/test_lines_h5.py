@@ -1,5 +1,6 @@
 """Lines <-> HDF5: round trips, the two readers (xarray/CF and VTK/VTKHDF), sharing, atomicity,
-errors. vtk is an optional bench peer: its test is skipped (importorskip) where it is absent."""
+errors. vtk (bench extra) and netCDF4 (no extra) are optional peers: their checks are skipped
+(importorskip) where they are absent; xarray + h5netcdf (io extra) are required."""
 
 import os
 import tracemalloc
@@ -7,6 +8,7 @@ import tracemalloc
 import h5py
 import numpy as np
 import pytest
+import xarray as xr  # the "io" extra, installed by `make test`
 
 from flowkit.integrate.reasons import REASON_NAMES, Reason
 from flowkit.io.atomic import atomic_path
@@ -166,11 +168,13 @@ def test_missing_attribute_lists_what_exists(tmp_path):
         assert f"'{name}'" in msg
 
 
-def test_xarray_sees_cf_trajectories(tmp_path):
-    xr = pytest.importorskip("xarray")
+@pytest.mark.parametrize("engine", ["h5netcdf", "netcdf4"])
+def test_xarray_sees_cf_trajectories(tmp_path, engine):
+    if engine == "netcdf4":  # netCDF4 is no flowkit dependency: an optional peer, like vtk
+        pytest.importorskip("netCDF4")
     lines = make_lines(LENGTHS)
     path = write_lines(lines, tmp_path / "l.h5", position_dtype="float64")
-    with xr.open_dataset(path, engine="h5netcdf") as ds:
+    with xr.open_dataset(path, engine=engine) as ds:
         assert ds.attrs["featureType"] == "trajectory"
         assert ds.attrs["Conventions"].startswith("CF-1.")
         assert ds.attrs["flowkit_format"] == "lines"
@@ -407,7 +411,6 @@ def test_writer_rejects_bad_schemas(tmp_path):
 
 
 def test_other_component_counts_get_their_own_dimension(tmp_path):
-    xr = pytest.importorskip("xarray")
     lines = make_lines([3, 0, 4])
     lines.point_data["uv"] = np.arange(14.0).reshape(7, 2)
     lines.line_data["seed_point"] = np.arange(9.0).reshape(3, 3)
