@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from render_scenes import FACE_ON, project, straight, style
 
 from flowkit.lines import Lines
 from flowkit.render import Band, Camera, ColorMap, LineRenderer, WidthMap, render_lines
 from flowkit.render.colormaps import colormap_lut
-from render_scenes import FACE_ON, project, straight, style
 
 RED, BLUE, WHITE, BLACK, GREY = (1, 0, 0, 1), (0, 0, 1, 1), (1, 1, 1, 1), (0, 0, 0, 1), (.5, .5, .5, 1)
 SIZE = (200, 100)

@@ -303,7 +303,10 @@ def style_from_dict(data: dict, where: str = "style") -> Style:
             kw[k] = data[k]
     if "camera" in data:
         kw["camera"] = camera_from_dict(f"{where} [camera]", data["camera"])
-    return Style(styles=styles, **kw)
+    try:
+        return Style(styles=styles, **kw)
+    except StyleError as e:  # checks shared with Python-built styles: name the file too
+        raise StyleError(f"{where}: {e}") from None
 
 
 def camera_from_dict(where: str, t: dict) -> Camera:
