@@ -152,3 +152,20 @@ def test_perspective_fit_shows_all_lines_and_line_ends_join():
     # no gaps at joins -> each row crossing the helix has few separate runs
     runs = [np.count_nonzero(np.diff(row.astype(int)) == 1) for row in ink]
     assert max(runs) <= 4
+
+
+def test_renderers_on_two_contexts_do_not_mix_gl_objects():
+    from flowkit.render import create_context
+
+    lines = straight((-1, 0, 0), (1, 0, 0), n=50, s=np.linspace(0, 1, 50))
+    viridis = style(Band(ColorMap("viridis", "s", (0.0, 1.0)), 4.0))
+    first = render_lines(lines, viridis, SIZE, FACE_ON)
+    other = create_context("egl")
+    try:
+        gray = render_lines(lines, style(Band(ColorMap("gray", "s", (0.0, 1.0)), 4.0)), SIZE,
+                            FACE_ON, ctx=other)
+        again = render_lines(lines, viridis, SIZE, FACE_ON)  # default context once more
+    finally:
+        other.release()
+    assert not np.array_equal(first, gray)
+    np.testing.assert_array_equal(again, first)

@@ -51,7 +51,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    from ..render import create_context, load_style, render_file, save_png
+    from ..render import create_context, default_context, load_style, render_file, save_png
     from ..render.style import camera_from_dict
 
     size = _size(args.size)
@@ -67,7 +67,7 @@ def run(args) -> int:
     camera = dataclasses.replace(style.camera, **{k: getattr(checked, k) for k in over})
     if args.supersample is not None:
         style = dataclasses.replace(style, supersample=args.supersample)
-    ctx = create_context(args.context)
+    ctx = default_context() if args.context == "egl" else create_context(args.context)
     image = render_file(args.lines, style, size, camera, ctx)
     path = save_png(image, args.output)
     print(f"wrote {path} ({size[0]}x{size[1]})")

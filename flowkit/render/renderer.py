@@ -8,6 +8,7 @@ draws into a multisampled framebuffer that is resolved and read back.
 
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 from typing import Self
@@ -22,6 +23,17 @@ from .colormaps import colormap_texture
 from .context import default_context
 from .shader_build import ShaderFlags, program_cache, shader_flags
 from .style import ColorMap, Style, StyleError, WidthMap, load_style
+
+
+def _current(method):
+    """Run a LineRenderer method with the renderer's context current."""
+
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        with self.ctx:
+            return method(self, *args, **kwargs)
+
+    return wrapper
 
 
 def adjacency_indices(lines: Lines) -> np.ndarray:
@@ -64,15 +76,18 @@ class LineRenderer:
         self.lines = lines
         self.bounds = lines.bounds()
         pos = np.ascontiguousarray(lines.points, dtype=np.float32)
-        self._pos = self.ctx.buffer(pos.tobytes())
         idx = adjacency_indices(lines)
         self.n_segments = idx.shape[0]
-        self._ibo = self.ctx.buffer(idx.tobytes()) if idx.size else None
+        # moderngl does not switch contexts per call: make ours current around all GL work
+        with self.ctx:
+            self._pos = self.ctx.buffer(pos.tobytes())
+            self._ibo = self.ctx.buffer(idx.tobytes()) if idx.size else None
         self._attrs: dict[str, moderngl.Buffer] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._fbos: dict[tuple, tuple] = {}
         self.programs = program_cache(self.ctx)
 
+    @_current
     def release(self) -> None:
         """Free this renderer's buffers and framebuffers (programs stay cached on the context)."""
         for obj in [*self._vaos.values(), *self._attrs.values(), self._pos, self._ibo]:
@@ -153,6 +168,7 @@ class LineRenderer:
             return 1
         return min(style.samples, self.ctx.max_samples) if self.ctx.max_samples >= 2 else 1
 
+    @_current
     def render(self, style: Style | str | os.PathLike, size: tuple[int, int] = (1920, 1080),
                camera: Camera | None = None) -> np.ndarray:
         """(H, W, 4) uint8 RGBA, row 0 at the top."""
@@ -173,6 +189,7 @@ class LineRenderer:
             img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
         return img
 
+    @_current
     def draw(self, style: Style, size: tuple[int, int], camera: Camera | None = None):
         """Draw into the (multisampled) target of ``size`` and resolve it; no read-back."""
         ctx = self.ctx
@@ -223,6 +240,7 @@ class LineRenderer:
         if ms is not None:
             ctx.copy_framebuffer(out, ms)
 
+    @_current
     def read(self) -> np.ndarray:
         """Read back the resolved image of the last draw: (H, W, 4) uint8, top row first."""
         out = next(iter(self._fbos.values()))[1]
