@@ -1,0 +1,169 @@
+"""The OpenCL backend: a drop-in for ``kernel.advance`` that runs the generated kernel on a device.
+
+``OpenCLAdvance(spec)(...)`` takes exactly the arguments of the numba ``kernel.advance`` and has
+the same effect on ``sf``, ``si``, ``out_p``, ``out_par`` and ``out_n``: the host driver in
+trace.py (vertex budget per line per pass, relaunch of unfinished lines, never truncating) is
+shared by both backends.  The active lines are processed in chunks; each chunk's state is packed,
+uploaded on one queue, advanced on a second and read back on a third, so that on a device with
+copy engines the transfers of one chunk overlap the kernel of the next.  The field and the grid
+are uploaded once per field.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import codegen
+from .device import select_device, supports_fp64
+
+DEFAULT_CHUNK = 65536  # lines per launch
+MIN_SPLIT = 2048  # at or above this many lines, at least two chunks so that copies overlap
+
+
+class OpenCLAdvance:
+    """Callable with the signature of ``flowkit.integrate.kernel.advance``.
+
+    spec    "opencl[:PLATFORM[:DEVICE]]"
+    dtype   "float64" (default where the device has fp64, else float32) or "float32"
+    image   sample the field from an image3d with hardware linear filtering (float32 texels);
+            see docs/opencl.md for the error this adds
+    """
+
+    def __init__(self, spec: str = "opencl", dtype: str | None = None, image: bool = False,
+                 chunk: int = DEFAULT_CHUNK):
+        import pyopencl as cl
+
+        self.cl = cl
+        self.device = select_device(spec)
+        fp64 = supports_fp64(self.device)
+        if dtype is None:
+            dtype = "float64" if fp64 else "float32"
+        if dtype not in ("float64", "float32"):
+            raise ValueError(f"OpenCL dtype must be float64 or float32, got {dtype!r}")
+        if dtype == "float64" and not fp64:
+            raise ValueError(f"OpenCL device {self.device.name.strip()} has no float64 support; "
+                             "use dtype='float32'")
+        if image and not self.device.image_support:
+            raise ValueError(f"OpenCL device {self.device.name.strip()} has no image support")
+        self.dtype = np.dtype(dtype)
+        self.real = "double" if self.dtype == np.float64 else "float"
+        self.image = bool(image)
+        self.chunk = int(chunk)
+        self.ctx = _context(self.device)
+        self.q_up, self.q_run, self.q_down = (cl.CommandQueue(self.ctx, self.device) for _ in range(3))
+        self._field = None  # (key arrays, device buffers)
+        self.launches = 0
+
+    def describe(self) -> str:
+        return (f"{self.device.name.strip()} [{self.device.platform.name.strip()}], {self.dtype.name}"
+                + (", image3d" if self.image else ""))
+
+    # -- field ------------------------------------------------------------------------------
+    def _field_buffers(self, gx, gy, gz, period, vec):
+        cl = self.cl
+        if self._field is not None and all(a is b for a, b in zip(self._field[0], (gx, gy, gz, vec))):
+            return self._field[1]
+        mf = cl.mem_flags
+        bufs = [cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                          hostbuf=np.ascontiguousarray(c, self.dtype)) for c in (gx, gy, gz)]
+        bufs.append(cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                              hostbuf=np.ascontiguousarray(vec, self.dtype)))
+        if self.image:
+            bufs.append(field_image(self.ctx, vec, period))
+        self._field = ((gx, gy, gz, vec), bufs)
+        return bufs
+
+    # -- one pass ----------------------------------------------------------------------------
+    def __call__(self, active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
+                 mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
+        cl = self.cl
+        from .. import kernel as K
+
+        arrays = (mc, ma, mb, me, me2, mp, mi)
+        flags = codegen.Flags(
+            method=_method_name(arrays), tableau=codegen.tableau_key(arrays), real=self.real,
+            aware=bool(io[K.P_AWARE]), periodic=bool(np.any(np.asarray(period) > 0)),
+            uniform=bool(np.all(np.asarray(inv) > 0)), image=self.image)
+        knl = codegen.kernel(self.ctx, self.device, flags, arrays)
+        fbufs = self._field_buffers(gx, gy, gz, period, vec)
+        n = active.size
+        B = out_p.shape[1]
+        dt = self.dtype
+        fo_buf = cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                           hostbuf=np.ascontiguousarray(fo, dt))
+        size = self.chunk if n < MIN_SPLIT else min(self.chunk, -(-n // 2))
+        bounds = [(lo, min(n, lo + size)) for lo in range(0, n, size)]
+        pending = []
+        for lo, hi in bounds:
+            idx = active[lo:hi]
+            m = hi - lo
+            host_in = [np.ascontiguousarray(seeds[idx], dt), np.ascontiguousarray(dirs[idx], dt),
+                       np.ascontiguousarray(spacings[idx], dt), np.ascontiguousarray(phases[idx], dt),
+                       np.ascontiguousarray(sf[idx], dt), np.ascontiguousarray(si[idx], np.int64)]
+            dev_in = [cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, h.nbytes) for h in host_in]
+            ev_up = [cl.enqueue_copy(self.q_up, d, h, is_blocking=False) for d, h in zip(dev_in, host_in)]
+            host_out = [np.empty((m, B, 3), dt), np.empty((m, B, 2), dt), np.empty(m, np.int64),
+                        host_in[4], host_in[5]]
+            dev_out = [cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, h.nbytes) for h in host_out[:3]]
+            scal = [np.float64(x) if self.real == "double" else np.float32(x)
+                    for x in (*period, *inv)]
+            args = [np.int32(m), *dev_in[:4], *fbufs[:3],
+                    *(np.int32(c.size) for c in (gx, gy, gz)), *scal, fbufs[3]]
+            if self.image:
+                args.append(fbufs[4])
+            args += [fo_buf, np.int64(io[K.P_MAXSTEPS]), np.int32(io[K.P_PARAM]),
+                     np.int32(io[K.P_EMIT]), dev_in[4], dev_in[5], *dev_out, np.int32(B)]
+            ev_run = knl(self.q_run, (m,), None, *args, wait_for=ev_up)
+            self.launches += 1
+            ev_down = [cl.enqueue_copy(self.q_down, h, d, is_blocking=False, wait_for=[ev_run])
+                       for h, d in zip(host_out, dev_out + dev_in[4:])]
+            pending.append((lo, hi, idx, host_in, host_out, ev_down))
+            for q in (self.q_up, self.q_run, self.q_down):
+                q.flush()
+        for lo, hi, idx, _host_in, (op, opar, on, sfc, sic), ev_down in pending:
+            cl.wait_for_events(ev_down)
+            out_p[lo:hi] = op
+            out_par[lo:hi] = opar
+            out_n[lo:hi] = on
+            sf[idx] = sfc
+            si[idx] = sic
+
+
+def field_image(ctx, vec, period):
+    """The vector field as a float32 RGBA image3d (w = 0); on periodic axes the first node layer
+    is repeated at the end so that the wrap cell's upper corners exist."""
+    import pyopencl as cl
+
+    v = np.asarray(vec, np.float32)
+    for a in range(3):
+        if period[a] > 0:
+            v = np.concatenate([v, np.take(v, [0], axis=a)], axis=a)
+    rgba = np.zeros(v.shape[:3] + (4,), np.float32)
+    rgba[..., :3] = v
+    # OpenCL images are indexed (x fastest): the array must be (nz, ny, nx, 4)
+    data = np.ascontiguousarray(rgba.transpose(2, 1, 0, 3))
+    fmt = cl.ImageFormat(cl.channel_order.RGBA, cl.channel_type.FLOAT)
+    return cl.Image(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, fmt,
+                    shape=v.shape[:3], hostbuf=data)
+
+
+def _method_name(arrays) -> str:
+    from ..methods import METHODS
+
+    key = codegen.tableau_key(arrays)
+    for name, m in METHODS.items():
+        if codegen.tableau_key(m.kernel_arrays()) == key:
+            return name
+    return "custom"
+
+
+_contexts: dict = {}
+
+
+def _context(device):
+    import pyopencl as cl
+
+    ctx = _contexts.get(device.int_ptr)
+    if ctx is None:
+        ctx = _contexts[device.int_ptr] = cl.Context([device])
+    return ctx

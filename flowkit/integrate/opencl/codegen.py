@@ -1,0 +1,117 @@
+"""Render the OpenCL kernel source from the method's tableau arrays, and cache compiled programs.
+
+The source is ``templates/advance.cl.j2`` rendered with flags that say what the run needs; the
+stages are unrolled from ``Method.kernel_arrays()`` (the arrays the numba kernel reads) as literal
+coefficients that parse back to exactly the same number (``repr`` of the float64 value; for
+float32 the float32-rounded value).  Zero coefficients are left out: adding ``0.0 * k`` never
+changes a finite sum, and the numba kernel sums the same non-zero terms in the same order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from functools import cache
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+from jinja2 import Environment, FileSystemLoader, StrictUndefined
+
+from .. import kernel as K
+
+TEMPLATES = Path(__file__).with_name("templates")
+
+
+@dataclass(frozen=True)
+class Flags:
+    """Everything that changes the kernel source; the program cache key (with the device)."""
+
+    method: str
+    tableau: bytes  # the method's kernel arrays, so that a changed tableau recompiles
+    real: str = "double"  # or "float"
+    aware: bool = True
+    periodic: bool = False  # any periodic axis: wrap code included
+    uniform: bool = True  # all axes uniform: O(1) cell lookup instead of a binary search
+    image: bool = False  # field from an image3d with hardware linear filtering
+
+    def describe(self) -> str:
+        d = asdict(self)
+        d.pop("tableau")
+        return ", ".join(f"{k}={v}" for k, v in d.items())
+
+
+def tableau_key(arrays) -> bytes:
+    return b"".join(np.ascontiguousarray(a).tobytes() + bytes(str(a.shape), "ascii") for a in arrays)
+
+
+def literal(x: float, real: str) -> str:
+    """A C literal that parses to exactly ``x`` (rounded to float32 first for real=float)."""
+    if real == "float":
+        x = float(np.float32(x))
+    s = repr(float(x))
+    if not np.isfinite(x):
+        raise ValueError(f"non-finite coefficient {x!r} in a tableau")
+    if "e" not in s and "." not in s:
+        s += ".0"
+    s = s + ("f" if real == "float" else "")
+    return f"({s})" if s.startswith("-") else s
+
+
+@cache
+def _env() -> Environment:
+    return Environment(loader=FileSystemLoader(str(TEMPLATES)), undefined=StrictUndefined,
+                       keep_trailing_newline=True, trim_blocks=False, lstrip_blocks=False)
+
+
+def render(flags: Flags, arrays) -> str:
+    """OpenCL C source for the method's ``kernel_arrays()`` under ``flags``."""
+    _c, a, b, e, e2, p, ints = arrays
+    S, n_err, fs, adaptive, kexp, has_e2 = (int(v) for v in ints)
+    q = p.shape[1]
+    if q > K.QMAX:
+        raise ValueError(f"method {flags.method}: dense output degree {q} > {K.QMAX}")
+    real = flags.real
+
+    def terms(w):
+        return [(m, float(w[m])) for m in range(len(w)) if w[m] != 0.0]
+
+    def wsum(ts):
+        """0.0 + w0*k[m0][a] + w1*k[m1][a] + ...: the numba kernel's left-to-right sum."""
+        return " + ".join(["R(0.0)"] + [f"{literal(w, real)} * k[{m}][a]" for m, w in ts])
+
+    def stage_code(st):
+        return (f"for (int a = 0; a < 3; a++) yt[a] = y[a] + hs * ({wsum(terms(a[st, :st]))});\n"
+                f"        rhs(yt[0], yt[1], yt[2], param, aware, &G, &C, k, {st} IMGA);")
+
+    consts = SimpleNamespace(**{n: int(getattr(K, n)) for n in dir(K) if n.isupper()
+                                and isinstance(getattr(K, n), int)})
+    return _env().get_template("advance.cl.j2").render(
+        method=flags.method, real=real, aware=flags.aware, periodic=flags.periodic,
+        uniform=flags.uniform, image=flags.image, S=S, q=q, QMAX=K.QMAX, NF=K.NF, NI=K.NI,
+        c=consts, kexp=kexp, adaptive=bool(adaptive), has_e2=bool(has_e2), fs=fs,
+        pre_stages=range(1, n_err), post_stages=range(n_err, fs + 1), dense_stages=range(fs + 1, S),
+        b_terms=terms(b[:n_err]), e_terms=terms(e[:n_err]), e2_terms=terms(e2[:n_err]),
+        p_terms=[terms(p[:, j]) for j in range(q)], wsum=wsum, stage_code=stage_code)
+
+
+# strict IEEE: no contraction into FMA (also set by the pragma), correctly rounded float32 / and sqrt
+BUILD_OPTIONS = ("-cl-fp32-correctly-rounded-divide-sqrt",)
+
+_programs: dict = {}
+
+
+def kernel(ctx, device, flags: Flags, arrays):
+    """The compiled ``advance`` kernel for (flags, device), built once per process."""
+    key = (flags, device.int_ptr)
+    prg = _programs.get(key)
+    if prg is None:
+        import pyopencl as cl
+
+        src = render(flags, arrays)
+        prg = cl.Program(ctx, src).build(options=list(BUILD_OPTIONS), devices=[device])
+        prg = _programs[key] = cl.Kernel(prg, "advance")
+    return prg
+
+
+def cached_programs() -> int:
+    return len(_programs)
