@@ -218,7 +218,9 @@ def _dense(sf, l, comp, q, y0, hs, th):
 
 @njit(cache=True)
 def _root(sf, l, comp, q, y0, hs, target, sgn, thi):
-    """Smallest-bracket θ in (0, thi] where sgn * (dense - target) turns >= 0 (Illinois)."""
+    """θ in [0, thi] where the dense output of ``comp`` meets ``target``, going from
+    sgn * (value - target) < 0 to >= 0: safeguarded Newton from the secant estimate."""
+    base = S_Q + comp * QMAX
     a = 0.0
     ga = sgn * (y0 - target)
     if ga > 0.0:
@@ -227,27 +229,29 @@ def _root(sf, l, comp, q, y0, hs, target, sgn, thi):
     gb = sgn * (_dense(sf, l, comp, q, y0, hs, b) - target)
     if gb < 0.0:
         return thi  # only rounding keeps the dense end short of the event
-    side = 0
-    for _ in range(100):
-        m = (a * gb - b * ga) / (gb - ga)
-        if not (m > a and m < b):
-            m = 0.5 * (a + b)
-        gm = sgn * (_dense(sf, l, comp, q, y0, hs, m) - target)
-        if gm >= 0.0:
-            b = m
-            gb = gm
-            if side == 1:
-                ga *= 0.5
-            side = 1
+    # from the secant estimate; on the face itself (ga == 0) look for the crossing after θ = 0
+    th = a - ga * (b - a) / (gb - ga) if ga < 0.0 else 0.5 * b
+    for _ in range(60):
+        r = 0.0
+        dr = 0.0
+        for j in range(q - 1, -1, -1):
+            dr = dr * th + r
+            r = r * th + sf[l, base + j]
+        g = sgn * (y0 + hs * (th * r) - target)
+        if g == 0.0 and th > 0.0:
+            return th
+        if g > 0.0:
+            b = th
         else:
-            a = m
-            ga = gm
-            if side == -1:
-                gb *= 0.5
-            side = -1
-        if b - a <= 1e-15 or gm == 0.0:
-            break
-    return b
+            a = th
+        dg = sgn * hs * (r + th * dr)
+        nxt = th - g / dg
+        if not (nxt > a and nxt < b):
+            nxt = 0.5 * (a + b)
+        if abs(nxt - th) <= 4e-16 or b - a <= 4e-16:
+            return nxt
+        th = nxt
+    return th
 
 
 # -- output ---------------------------------------------------------------------------------------

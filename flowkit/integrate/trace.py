@@ -27,18 +27,23 @@ CELL_CAP = 1.25  # cell-aware steps: at most this times the straight-line time t
 PROGRESS_MIN_SEEDS = 20000
 
 
-def trace(field: Field, seeds, options: TraceOptions | None = None, **kw) -> Lines:
-    """Streamlines of ``field`` from ``seeds`` ((n, 3) or (3,)); ``kw`` overrides ``options``."""
+def trace(field: Field, seeds, options: TraceOptions | None = None, *, backend="numba",
+          **kw) -> Lines:
+    """Streamlines of ``field`` from ``seeds`` ((n, 3) or (3,)); ``kw`` overrides ``options``.
+
+    ``backend``: "numba" (CPU, all cores), "opencl[:PLATFORM[:DEVICE]]", or a callable with the
+    signature of ``kernel.advance``.
+    """
     opts = _options(options, kw)
     seeds = _seeds(seeds)
-    parts = list(_batches(field, seeds, opts))
+    parts = list(_batches(field, seeds, opts, backend=backend))
     lines = Lines.concatenate(parts) if parts else _empty(field, opts)
     lines.attrs = _attrs(field, opts)
     return lines
 
 
 def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None, *,
-                  batch_seeds: int = BATCH_SEEDS, position_dtype="float32", **kw):
+                  batch_seeds: int = BATCH_SEEDS, position_dtype="float32", backend="numba", **kw):
     """Trace and stream each batch of ``batch_seeds`` seeds to the HDF5 file ``path``.
 
     Peak memory ~ one batch: the output buffer (BUFFER_BYTES, 128 MiB) plus that batch's lines
@@ -51,7 +56,7 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
     seeds = _seeds(seeds)
     writer = None
     try:
-        for part in _batches(field, seeds, opts, batch_seeds):
+        for part in _batches(field, seeds, opts, batch_seeds, backend):
             part.attrs = _attrs(field, opts)
             if writer is None:
                 writer = LinesWriter.like(part, path, position_dtype=position_dtype)
@@ -104,11 +109,24 @@ def _empty(field, opts) -> Lines:
     return Lines(np.zeros((0, 3)), np.zeros(1, np.int64), pd, ld)
 
 
+def _typical_speed(field: Field, max_nodes: int = 1 << 20) -> float:
+    """Field.typical_speed on a strided subsample of at most ~max_nodes nodes: it only scales
+    defaults (stagnation threshold, minimum and fixed steps), and the full median costs seconds
+    on large grids."""
+    shape = np.array(field.grid.shape)
+    stride = max(1, int(np.ceil((shape.prod() / max_nodes) ** (1 / 3))))
+    v = field.vector[::stride, ::stride, ::stride]
+    sp = np.sqrt(np.einsum("...i,...i->...", v, v)).ravel()
+    sp = sp[np.isfinite(sp) & (sp > 0)]
+    return float(np.median(sp)) if sp.size else 0.0
+
+
 class _Setup:
     """Kernel arguments derived once per trace from the field and the options."""
 
-    def __init__(self, field: Field, opts: TraceOptions):
+    def __init__(self, field: Field, opts: TraceOptions, backend="numba"):
         _attributes.check(field, opts.attributes)
+        self.advance = _backend(backend)
         g = field.grid
         m = opts.method_obj
         if m.p.shape[1] > K.QMAX:
@@ -118,7 +136,7 @@ class _Setup:
         self.vec = field.vector
         ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
         cell = g.min_cell_size
-        vtyp = field.typical_speed()
+        vtyp = _typical_speed(field)
         # time needed to cross the smallest cell at the typical speed (or its arc length)
         cross = cell if opts.parameter == "arc_length" else cell / (vtyp if vtyp > 0 else 1.0)
         fo = np.zeros(K.NFO)
@@ -161,7 +179,7 @@ class _Setup:
             out_p = np.empty((active.size, B, 3))
             out_par = np.empty((active.size, B, 2))
             out_n = np.zeros(active.size, np.int64)
-            K.advance(active, seeds, dirs, spacing, phase, *self.grid, self.vec,
+            self.advance(active, seeds, dirs, spacing, phase, *self.grid, self.vec,
                       *self.method.kernel_arrays(), self.fo, io, sf, si, out_p, out_par, out_n)
             keep = np.arange(B)[None, :] < out_n[:, None]
             chunks_p.append(out_p[keep])
@@ -178,8 +196,20 @@ class _Setup:
         return np.concatenate(chunks_p)[order], par[:, 0], par[:, 1], owner[order], si
 
 
-def _batches(field, seeds, opts, batch_seeds=BATCH_SEEDS):
-    setup = _Setup(field, opts)
+def _backend(backend):
+    if callable(backend):
+        return backend
+    if backend == "numba":
+        return K.advance
+    if isinstance(backend, str) and backend.split(":")[0] == "opencl":
+        from .opencl.backend import OpenCLAdvance
+
+        return OpenCLAdvance(backend)
+    raise ValueError(f"unknown backend {backend!r}; use 'numba' or 'opencl[:PLATFORM[:DEVICE]]'")
+
+
+def _batches(field, seeds, opts, batch_seeds=BATCH_SEEDS, backend="numba"):
+    setup = _Setup(field, opts, backend)
     n = seeds.shape[0]
     show = opts.progress if opts.progress is not None else (n >= PROGRESS_MIN_SEEDS and sys.stderr.isatty())
     bar = None
