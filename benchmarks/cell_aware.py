@@ -16,8 +16,8 @@ import time
 
 import numba
 import numpy as np
+from common import Problem, abc_field, make_seeds
 
-from common import Problem, abc_field, make_seeds  # noqa: I001  (run as a script from benchmarks/)
 from flowkit import trace
 
 
@@ -32,7 +32,7 @@ def main():
     field = abc_field(prob)
     seeds = make_seeds(prob)
     L = prob.length
-    common = dict(max_length=L, atol=1e-12)
+    common = {"max_length": L, "atol": 1e-12}
     ref = trace(field, seeds, method="dop853", rtol=1e-13, cell_aware=True, **common)
     ref_end = ref.points[ref.offsets[1:] - 1]
     assert np.all(ref.line_data["reason"] == 1), "reference lines must all reach max_length"
