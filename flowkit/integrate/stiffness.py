@@ -1,0 +1,93 @@
+"""Stiffness: the exact Jacobian of a cell's trilinear polynomial, and Hairer & Wanner's test.
+
+A streamline ODE is stiff where the velocity gradient has an eigenvalue λ with Re λ << 0 whose
+mode has already decayed: an explicit method's step is then held at |hλ| ≈ 3.3 (DP5's
+stability boundary on the negative axis) by stability, not by accuracy.
+
+*Detection* (Hairer & Wanner, Solving ODEs II, IV.2; the ``dopri5`` code's test): the last two
+DP5 stages are both evaluated at c = 1, at ``y_s`` (stage 6) and at ``y1`` (stage 7, FSAL), so
+
+    |hλ| ≈ h ‖k7 − k6‖ / ‖y1 − y_s‖
+
+estimates the dominant eigenvalue along the stage difference at no extra cost.  A line is
+flagged stiff after ``STIFF_STEPS`` (15) consecutive accepted steps with hλ > ``HLAMBDA_STIFF``
+(3.25); ``NONSTIFF_RESET`` (6) steps below it reset the count.  ``stiff_update`` keeps the counts
+and the (sticky) flag in one int, made for the kernel's reserved state column ``I_STIFF``.
+
+*Jacobian*: within a cell the interpolant is u(t) = c0 + c1 tx + c2 ty + c3 tz + c4 tx ty
++ c5 tx tz + c6 ty tz + c7 tx ty tz with t = (x − lo) / width (the kernel's ``coef``/``cf``
+layout), so ∂u/∂x = (c1 + c4 ty + c5 tz + c7 ty tz) / wx, and likewise for y and z: exact and
+cheap; the Rosenbrock driver (``rosenbrock.py``) uses it.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+HLAMBDA_STIFF = 3.25  # DP5's stability interval on the negative real axis is about 3.3
+STIFF_STEPS = 15
+NONSTIFF_RESET = 6
+_STIFF_BIT = 1 << 16  # state: bits 0-7 stiff count, 8-15 non-stiff count, bit 16 stiff flag
+
+
+@njit(cache=True)
+def cell_jacobian(coef, cf, px, py, pz, J):
+    """J[i, j] = ∂u_i/∂x_j of the cell polynomial (``coef`` (8, 3), ``cf`` faces and inverse
+    widths as in the kernel) at (px, py, pz); valid beyond the faces too (the extension)."""
+    tx = (px - cf[0]) * cf[6]
+    ty = (py - cf[1]) * cf[7]
+    tz = (pz - cf[2]) * cf[8]
+    for c in range(3):
+        J[c, 0] = (coef[1, c] + ty * coef[4, c] + tz * coef[5, c] + ty * tz * coef[7, c]) * cf[6]
+        J[c, 1] = (coef[2, c] + tx * coef[4, c] + tz * coef[6, c] + tx * tz * coef[7, c]) * cf[7]
+        J[c, 2] = (coef[3, c] + tx * coef[5, c] + ty * coef[6, c] + tx * ty * coef[7, c]) * cf[8]
+
+
+@njit(cache=True)
+def dp5_hlambda(h, k, ys, y1):
+    """|hλ| from DP5's last two stages: h ‖k[6] − k[5]‖ / ‖y1 − ys‖ over the position
+    (``k`` rows are stages, ``ys`` the point of stage 6 (index 5), ``y1`` the step's end).
+    0 when the two points coincide (no information)."""
+    num = 0.0
+    den = 0.0
+    for a in range(3):
+        num += (k[6, a] - k[5, a]) ** 2
+        den += (y1[a] - ys[a]) ** 2
+    if den <= 0.0 or not math.isfinite(num):
+        return 0.0
+    return abs(h) * math.sqrt(num / den)
+
+
+@njit(cache=True)
+def stiff_update(state, hlam):
+    """The stiffness state after one accepted step with estimate ``hlam``."""
+    flag = state & _STIFF_BIT
+    n_stiff = state & 0xFF
+    n_non = (state >> 8) & 0xFF
+    if hlam > HLAMBDA_STIFF:
+        n_non = 0
+        n_stiff = min(n_stiff + 1, 255)
+        if n_stiff >= STIFF_STEPS:
+            flag = _STIFF_BIT
+    else:
+        n_non = min(n_non + 1, 255)
+        if n_non >= NONSTIFF_RESET:
+            n_stiff = 0
+    return flag | (n_non << 8) | n_stiff
+
+
+@njit(cache=True)
+def is_stiff(state):
+    """True once the line has met STIFF_STEPS consecutive stiff steps."""
+    return (state & _STIFF_BIT) != 0
+
+
+@njit(cache=True)
+def spectral_radius_bound(J):
+    """max_i Σ_j |J[i, j]| (≥ the spectral radius): a cheap a-priori stiffness scale 1/time."""
+    r = 0.0
+    for i in range(3):
+        r = max(r, abs(J[i, 0]) + abs(J[i, 1]) + abs(J[i, 2]))
+    return r
