@@ -98,11 +98,14 @@ def sources(s, msaa=True) -> str:
 
 
 def test_plain_style_source_has_no_colormap_width_map_or_depth_code():
-    src = sources(style(Band((0.1, 0.2, 0.3, 1.0), 2.0)))
-    for word in ("sampler", "texture(", "u_cmap", "u_crange", "u_wmap", "a_attr", "g_attr",
-                 "gl_FragDepth", "u_depth", "u_color1"):
-        assert word not in src, word
-    assert "u_color0" in src and "u_width0" in src
+    src = build_sources(shader_flags(style(Band((0.1, 0.2, 0.3, 1.0), 2.0)), True))
+    frag, vert = src["fragment_shader"], src["vertex_shader"]
+    for word in ("sampler", "texture(", "u_cmap", "u_crange", "u_wmap", "g_attr", "gl_FragDepth",
+                 "u_depth", "u_color1"):
+        assert word not in frag, word
+    assert "u_color0" in frag and "u_width0" in frag
+    assert "u_attr" not in vert and "g_attr" not in vert  # no attribute fetched at all
+    assert vert.count("sampler2D") == 1  # only the point positions
 
 
 def test_colormap_and_width_map_styles_include_their_code_and_only_their_bands():
@@ -113,7 +116,7 @@ def test_colormap_and_width_map_styles_include_their_code_and_only_their_bands()
     assert "uniform sampler2D u_cmap0;" in src and "texture(u_cmap0" in src
     assert "u_cmap1" not in src and "u_cmap2" not in src  # one sampler: one colormapped band
     assert "u_wmap1" in src and "u_wmap0" not in src and "u_wmap2" not in src
-    assert "in float a_attr0;" in src and "in float a_attr1;" in src and "a_attr2" not in src
+    assert "sampler2D u_attr0;" in src and "sampler2D u_attr1;" in src and "u_attr2" not in src
     assert "gl_FragDepth" in src and all(f"u_color{i}" in src for i in (1, 2))
     assert "u_color3" not in src and "u_width3" not in src
     # no style string reaches the source: attribute and colormap names are slots and textures

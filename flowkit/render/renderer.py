@@ -1,8 +1,8 @@
 """moderngl line-style renderer: Lines in, RGBA image out.
 
-Geometry goes to the GPU once per ``LineRenderer``: float32 positions, a lines_adjacency index
-buffer, and one float32 buffer per attribute a style reads (uploaded the first time a style reads
-it).  A render binds the program for the style's flags (cached), sets uniforms and textures, and
+Geometry goes to the GPU once per ``LineRenderer``: float32 positions (+ line number) in a
+texture, a triangle-strip index buffer (two strip vertices per point, restart between lines), and
+one float32 texture per attribute a style reads (uploaded the first time a style reads it).  A render binds the program for the style's flags (cached), sets uniforms and textures, and
 draws into a multisampled framebuffer that is resolved and read back.
 """
 
@@ -21,7 +21,7 @@ from ..lines import Lines
 from .camera import Camera
 from .colormaps import colormap_texture
 from .context import default_context
-from .shader_build import ShaderFlags, program_cache, shader_flags
+from .shader_build import TEX_WIDTH, ShaderFlags, program_cache, shader_flags
 from .style import ColorMap, Style, StyleError, WidthMap, load_style
 
 
@@ -36,28 +36,32 @@ def _current(method):
     return wrapper
 
 
-def adjacency_indices(lines: Lines) -> np.ndarray:
-    """uint32 (S, 4) indices (prev, a, b, next) of every segment a-b whose ends are finite;
-    prev/next repeat a/b at line ends and next to non-finite vertices."""
-    n = lines.lengths
+def strip_indices(lines: Lines) -> np.ndarray:
+    """uint32 indices of one triangle strip per run of >= 2 consecutive finite points of a line
+    (vertex 2i and 2i+1 are the two sides at point i), runs separated by the restart index."""
     finite = np.all(np.isfinite(lines.points), axis=1)
-    starts = lines.offsets[:-1]
-    nseg = np.maximum(n - 1, 0)
-    if nseg.sum() == 0:
-        return np.zeros((0, 4), np.uint32)
-    line_of = np.repeat(np.arange(len(n)), nseg)
-    a = starts[line_of] + np.arange(nseg.sum()) - np.repeat(np.cumsum(nseg) - nseg, nseg)
-    b = a + 1
-    first, last = starts[line_of], starts[line_of] + n[line_of] - 1
-    prev = np.maximum(a - 1, first)
-    nxt = np.minimum(b + 1, last)
-    prev = np.where(finite[prev], prev, a)
-    nxt = np.where(finite[nxt], nxt, b)
-    keep = finite[a] & finite[b]
-    idx = np.stack([prev, a, b, nxt], axis=1)[keep]
-    if idx.size and idx.max() >= 2**32:
-        raise ValueError(f"{lines.n_points} vertices: more than 2**32 cannot be drawn in one call")
-    return idx.astype(np.uint32)
+    line_of = lines.line_index()
+    i = np.flatnonzero(finite)
+    if i.size == 0:
+        return np.zeros(0, np.uint32)
+    # a run breaks where the index jumps (a non-finite point) or the line changes
+    brk = np.flatnonzero((np.diff(i) != 1) | (np.diff(line_of[i]) != 0)) + 1
+    starts, stops = np.r_[0, brk], np.r_[brk, i.size]
+    keep = stops - starts >= 2
+    runs = [i[a:b] for a, b in zip(starts[keep], stops[keep])]
+    if not runs:
+        return np.zeros(0, np.uint32)
+    if 2 * lines.n_points + 1 >= RESTART:
+        raise ValueError(f"{lines.n_points} points: too many to draw in one call")
+    parts = []
+    for r in runs:
+        parts.append(np.stack([2 * r, 2 * r + 1], axis=1).ravel())
+        parts.append(np.array([RESTART], np.int64))
+    return np.concatenate(parts).astype(np.uint32)
+
+
+def point_texture_shape(n: int) -> tuple[int, int]:
+    return TEX_WIDTH, max(1, -(-n // TEX_WIDTH))
 
 
 def _as_style(style) -> Style:
@@ -68,6 +72,9 @@ def _as_style(style) -> Style:
     raise TypeError(f"style must be a Style or a path to a TOML style file, got {type(style).__name__}")
 
 
+RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
+
+
 class LineRenderer:
     """Draws one set of lines with any number of styles, cameras and sizes."""
 
@@ -75,14 +82,19 @@ class LineRenderer:
         self.ctx = ctx or default_context()
         self.lines = lines
         self.bounds = lines.bounds()
-        pos = np.ascontiguousarray(lines.points, dtype=np.float32)
-        idx = adjacency_indices(lines)
-        self.n_segments = idx.shape[0]
+        idx = strip_indices(lines)
+        self.n_indices = idx.size
+        if len(lines) >= 2**24:  # line numbers travel as float32 in the point texture
+            raise ValueError(f"{len(lines)} lines: at most {2**24} can be drawn at once")
+        w, h = point_texture_shape(lines.n_points)
+        pts = np.zeros((w * h, 4), np.float32)
+        pts[:lines.n_points, :3] = lines.points
+        pts[:lines.n_points, 3] = lines.line_index()
         # moderngl does not switch contexts per call: make ours current around all GL work
         with self.ctx:
-            self._pos = self.ctx.buffer(pos.tobytes())
+            self._points = self._texture(pts, 4)
             self._ibo = self.ctx.buffer(idx.tobytes()) if idx.size else None
-        self._attrs: dict[str, moderngl.Buffer] = {}
+        self._attrs: dict[str, moderngl.Texture] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._fbos: dict[tuple, tuple] = {}
         self.programs = program_cache(self.ctx)
@@ -90,7 +102,7 @@ class LineRenderer:
     @_current
     def release(self) -> None:
         """Free this renderer's buffers and framebuffers (programs stay cached on the context)."""
-        for obj in [*self._vaos.values(), *self._attrs.values(), self._pos, self._ibo]:
+        for obj in [*self._vaos.values(), *self._attrs.values(), self._points, self._ibo]:
             if obj is not None:
                 obj.release()
         for ms, out in self._fbos.values():
@@ -113,7 +125,19 @@ class LineRenderer:
     def uploaded_attributes(self) -> list[str]:
         return list(self._attrs)
 
-    def _attribute_buffer(self, name: str) -> moderngl.Buffer:
+    def _texture(self, values: np.ndarray, components: int) -> moderngl.Texture:
+        """Float32 texture of per-point values, TEX_WIDTH points per row, nearest filtering."""
+        size = point_texture_shape(self.lines.n_points)
+        if size[1] > self.ctx.info["GL_MAX_TEXTURE_SIZE"]:
+            raise ValueError(f"{self.lines.n_points} points need a {size[0]}x{size[1]} texture; "
+                             f"this OpenGL allows {self.ctx.info['GL_MAX_TEXTURE_SIZE']} rows")
+        data = np.zeros((size[0] * size[1], components), np.float32)
+        data[:len(values)] = values.reshape(len(values), -1)[:, :components]
+        tex = self.ctx.texture(size, components, data.tobytes(), dtype="f4")
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        return tex
+
+    def _attribute_texture(self, name: str) -> moderngl.Texture:
         buf = self._attrs.get(name)
         if buf is None:
             lines = self.lines
@@ -128,19 +152,15 @@ class LineRenderer:
             if v.ndim != 1:
                 raise StyleError(f"attribute '{name}' has shape {v.shape}; a style can only map "
                                  f"scalar (one value per vertex) attributes")
-            buf = self.ctx.buffer(np.ascontiguousarray(v, dtype=np.float32).tobytes())
+            buf = self._texture(np.asarray(v, dtype=np.float32), 1)
             self._attrs[name] = buf
         return buf
 
-    def _vao(self, prog: moderngl.Program, attrs: list[str]) -> moderngl.VertexArray:
-        key = (prog.glo, tuple(attrs))
-        vao = self._vaos.get(key)
-        if vao is None:
-            content = [(self._pos, "3f", "a_pos")]
-            content += [(self._attribute_buffer(a), "f", f"a_attr{k}") for k, a in enumerate(attrs)]
-            vao = self.ctx.vertex_array(prog, content, self._ibo, index_element_size=4,
-                                        skip_errors=True)
-            self._vaos[key] = vao
+    def _vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
+        vao = self._vaos.get(prog.glo)
+        if vao is None:  # no vertex attributes: everything is fetched from textures
+            vao = self.ctx.vertex_array(prog, [], self._ibo, index_element_size=4)
+            self._vaos[prog.glo] = vao
         return vao
 
     # -- framebuffers ---------------------------------------------------------------------------
@@ -223,12 +243,15 @@ class LineRenderer:
                 "u_px": cam.px_scale,
                 "u_persp": 1.0 if cam.proj[3, 2] != 0 else 0.0,
             }
-            unit = 0
-            for name, value in band_uniforms(style).items():
-                if isinstance(value, str):  # a colormap name -> texture bound to the next unit
-                    colormap_texture(ctx, value).use(location=unit)
-                    value, unit = unit, unit + 1
-                uniforms[name] = value
+            textures = [("u_points", self._points)]
+            textures += [(f"u_attr{k}", self._attribute_texture(a)) for k, a in enumerate(attrs)]
+            textures += [(name, colormap_texture(ctx, value))
+                         for name, value in band_uniforms(style).items() if isinstance(value, str)]
+            for unit, (name, tex) in enumerate(textures):
+                tex.use(location=unit)
+                uniforms[name] = unit
+            uniforms.update({k: v for k, v in band_uniforms(style).items() if not isinstance(v, str)})
+            uniforms["u_npoints"] = self.lines.n_points
             for name, value in uniforms.items():
                 if name in prog:  # the compiler drops uniforms it can prove unused
                     u = prog[name]
@@ -236,7 +259,7 @@ class LineRenderer:
                         u.write(value)
                     else:
                         u.value = value
-            self._vao(prog, attrs).render(moderngl.LINES_ADJACENCY)
+            self._vao(prog).render(moderngl.TRIANGLE_STRIP)
         if ms is not None:
             ctx.copy_framebuffer(out, ms)
 

@@ -18,6 +18,7 @@ from .style import ColorMap, Style, WidthMap
 
 SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
 GLSL_VERSION = 330
+TEX_WIDTH = 4096  # points per row of the point/attribute textures
 COLOR_KINDS = ("const", "cmap")
 WIDTH_KINDS = ("const", "map")
 
@@ -106,13 +107,12 @@ _env = jinja2.Environment(
 
 
 def build_sources(flags: ShaderFlags) -> dict[str, str]:
-    """GLSL sources (vertex, geometry, fragment) for ``flags``."""
+    """GLSL sources (vertex, fragment) for ``flags``."""
     ctx = _checked(asdict(flags))
-    ctx.update(glsl_version=GLSL_VERSION, lut_size=LUT_SIZE,
+    ctx.update(glsl_version=GLSL_VERSION, lut_size=LUT_SIZE, tex_width=TEX_WIDTH,
                uses_colormap=flags.uses_colormap, uses_width_map=flags.uses_width_map)
     return {
         "vertex_shader": _env.get_template("lines.vert").render(ctx),
-        "geometry_shader": _env.get_template("lines.geom").render(ctx),
         "fragment_shader": _env.get_template("lines.frag").render(ctx),
     }
 

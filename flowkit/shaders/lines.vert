@@ -1,16 +1,57 @@
 #version {{ glsl_version }}
-// Positions to view space; attributes pass through (only those the style reads).
-uniform mat4 u_view;
-in vec3 a_pos;
+// View-oriented strips without a geometry shader: each line is one triangle strip with two
+// vertices per point (gl_VertexID = 2 * point + side); the vertex fetches its point and the
+// neighbours from u_points (xyz + line number).  The side vector at a point depends only on the
+// point and its neighbours, so the strip is continuous at joins (mitred, limit 2).
+uniform sampler2D u_points;     // one texel per point: x, y, z, line number
 {% for k in range(n_attrs) %}
-in float a_attr{{ k }};
-out float vs_attr{{ k }};
+uniform sampler2D u_attr{{ k }};  // attribute slot {{ k }}, one texel per point
+out float g_attr{{ k }};
 {% endfor %}
-out vec3 vs_view;
+uniform mat4 u_view;
+uniform mat4 u_proj;
+uniform int u_npoints;
+uniform float u_half;       // strip half-width, style units (scale x widest style's total width)
+uniform float u_pixels;     // 1: style units are pixels, 0: world units
+uniform vec2 u_px;          // world size of one pixel at view depth z: u_px.x * (-z) + u_px.y
+uniform float u_persp;      // 1 perspective (view rays through the eye), 0 orthographic
+out float g_b;              // signed lateral position, style units (0 on the centre line)
+out float g_z;              // view-space z (for depth offsets)
+
+ivec2 texel(int i) { return ivec2(i % {{ tex_width }}, i / {{ tex_width }}); }
+
+vec3 safe_dir(vec3 v, vec3 fallback) {
+    float n = length(v);
+    return n > 1e-12 ? v / n : fallback;
+}
+
+// view-space position of neighbour j of a point on line `line`, or `p` if there is none
+vec3 neighbour(int j, float line, vec3 p) {
+    if (j < 0 || j >= u_npoints) return p;
+    vec4 q = texelFetch(u_points, texel(j), 0);
+    if (q.w != line || any(isnan(q.xyz)) || any(isinf(q.xyz))) return p;
+    return (u_view * vec4(q.xyz, 1.0)).xyz;
+}
 
 void main() {
-    vs_view = (u_view * vec4(a_pos, 1.0)).xyz;
+    int i = gl_VertexID >> 1;
+    float sgn = (gl_VertexID & 1) == 0 ? 1.0 : -1.0;
+    vec4 q = texelFetch(u_points, texel(i), 0);
+    vec3 p = (u_view * vec4(q.xyz, 1.0)).xyz;
+    vec3 a = neighbour(i - 1, q.w, p), c = neighbour(i + 1, q.w, p);
+    vec3 e = normalize(mix(vec3(0.0, 0.0, 1.0), -p, u_persp));   // towards the viewer
+    vec3 t_in = safe_dir(p - a, vec3(0.0)), t_out = safe_dir(c - p, vec3(0.0));
+    vec3 t_seg = dot(t_in, t_in) > 0.0 ? t_in : safe_dir(t_out, vec3(1.0, 0.0, 0.0));
+    vec3 t = safe_dir(t_in + t_out, t_seg);
+    vec3 s_seg = safe_dir(cross(t_seg, e), vec3(1.0, 0.0, 0.0));
+    vec3 s = safe_dir(cross(t, e), s_seg);
+    s /= max(abs(dot(s, s_seg)), 0.5);  // mitre: the same for both segments (s bisects them)
+    float half_world = u_half * mix(1.0, u_px.x * (-p.z) + u_px.y, u_pixels);
+    vec3 v = p + sgn * half_world * s;
+    gl_Position = u_proj * vec4(v, 1.0);
+    g_b = sgn * u_half;
+    g_z = v.z;
 {% for k in range(n_attrs) %}
-    vs_attr{{ k }} = a_attr{{ k }};
+    g_attr{{ k }} = texelFetch(u_attr{{ k }}, texel(i), 0).r;
 {% endfor %}
 }
