@@ -1,0 +1,190 @@
+"""Stiffness detection (Hairer–Wanner's DP5 test) and the L-stable ROS34PW2 driver."""
+
+import numpy as np
+import pytest
+
+from flowkit import trace
+from flowkit.fields.analytic import ABCFlow, LinearField, SolidBodyRotation
+from flowkit.integrate import kernel as K
+from flowkit.integrate import rosenbrock as R
+from flowkit.integrate.methods import get_method
+from flowkit.integrate.reasons import Reason
+from flowkit.integrate.rosenbrock import trace_rosenbrock
+from flowkit.integrate.stiffness import (
+    HLAMBDA_STIFF,
+    STIFF_STEPS,
+    cell_jacobian,
+    dp5_hlambda,
+    is_stiff,
+    stiff_update,
+)
+
+STIFF = LinearField.stiff()  # eigenvalues -1, -1e4 in the xy-plane, drift 1 along z
+STIFF_GRID = STIFF.to_field((4, 4, 11))  # linear: trilinear-exact; the fixed axis is mid-cell
+SEEDS = np.array([[0.5, -0.3, 0.0], [0.9, 0.2, 1.0], [-0.2, -0.7, 0.5]])
+
+
+def test_cell_jacobian_is_the_exact_gradient_of_the_interpolant():
+    fld = ABCFlow().to_field(9, bounds=[[0, 2.0]] * 3, periodic=False)
+    g = fld.grid
+    p = np.array([0.61, 1.13, 0.37])
+    coef, cf, ci = np.empty((8, 3)), np.empty(9), np.full(3, -1, np.int64)
+    assert K._relocate(*g.kernel_args(), fld.vector, *p, ci, cf, coef)
+    J = np.empty((3, 3))
+    cell_jacobian(coef, cf, *p, J)
+    eps = 1e-6  # central differences of the trilinear interpolant (within the same cell)
+    fd = np.stack([(fld.sample(p + eps * e)[0] - fld.sample(p - eps * e)[0])[0] / (2 * eps)
+                   for e in np.eye(3)], axis=1)
+    np.testing.assert_allclose(J, fd, rtol=1e-7, atol=1e-8)
+    # and on a linear field it is the field's matrix
+    lin = STIFF_GRID
+    assert K._relocate(*lin.grid.kernel_args(), lin.vector, 0.2, -0.1, 3.3, ci, cf, coef)
+    cell_jacobian(coef, cf, 0.2, -0.1, 3.3, J)
+    np.testing.assert_allclose(J, STIFF.A, rtol=1e-12, atol=1e-8)
+
+
+def test_stiff_update_counts_consecutive_steps_and_resets():
+    s = 0
+    for _ in range(STIFF_STEPS - 1):
+        s = stiff_update(s, 2 * HLAMBDA_STIFF)
+    assert not is_stiff(s)
+    for _ in range(6):  # six non-stiff steps reset the count
+        s = stiff_update(s, 0.1)
+    for _ in range(STIFF_STEPS - 1):
+        s = stiff_update(s, 2 * HLAMBDA_STIFF)
+    assert not is_stiff(s)
+    s = stiff_update(s, 2 * HLAMBDA_STIFF)
+    assert is_stiff(s)
+    for _ in range(50):  # the flag is sticky: the line met a stiff stretch
+        s = stiff_update(s, 0.1)
+    assert is_stiff(s)
+
+
+def _dp5_detect(A, y0, t_end, rtol):
+    """A plain adaptive DP5 on y' = A y (the registry's tableau), feeding the detector; returns
+    (flag, steps, first step flagged, median hλ)."""
+    m = get_method("dopri5")
+    y, t, h, state, first, hl = np.array(y0, float), 0.0, 1e-4, 0, -1, []
+    n = 0
+    while t < t_end and n < 5000:
+        k = np.zeros((7, 4))
+        ys = None
+        for s in range(7):
+            yt = y + h * (m.a[s, :s] @ k[:s, :3])
+            if s == 5:
+                ys = yt
+            k[s, :3] = A @ yt
+        y1 = y + h * (m.b @ k[:, :3])
+        sc = rtol + rtol * np.maximum(abs(y), abs(y1))
+        err = np.sqrt(np.mean((h * (m.e @ k[:, :3]) / sc) ** 2))
+        if err <= 1:
+            hlam = dp5_hlambda(h, k, ys, y1)
+            hl.append(hlam)
+            state = stiff_update(state, hlam)
+            if is_stiff(state) and first < 0:
+                first = n
+            y, t, n = y1, t + h, n + 1
+        h *= min(5.0, max(0.2, 0.9 * err ** -0.2)) if err > 0 else 5.0
+    return is_stiff(state), n, first, float(np.median(hl))
+
+
+def test_hairer_wanner_test_flags_the_stiff_field_and_not_a_mild_one():
+    A = STIFF.A.copy()
+    flag, _, first, hlam = _dp5_detect(A, [0.5, -0.3, 0.0], 0.5, 1e-6)
+    assert flag and 0 < first < 200, (flag, first)
+    # the step is held on DP5's stability boundary (|hλ| ≈ 3.3), estimated from the stages
+    assert 2.0 < hlam < 4.0, hlam
+    flag, _, _, hlam = _dp5_detect(-np.eye(3) + 0.3 * np.eye(3)[::-1], [0.5, -0.3, 0.2], 5.0, 1e-6)
+    assert not flag and hlam < HLAMBDA_STIFF
+
+
+def test_ros34pw2_coefficients_give_order_3_and_l_stability():
+    G = R.GAMMAS + R.GAMMA * np.eye(4)
+
+    def stab(z, b):  # R(z) for y' = λy: (I - z(α + Γ)) k = z 1 y0
+        k = np.linalg.solve(np.eye(4) - z * (R.ALPHA + G), z * np.ones(4))
+        return 1 + b @ k
+
+    for z, p in ((1e-2, 3), (1e-2, 2)):
+        b = R.B if p == 3 else R.BHAT
+        ratio = abs(stab(z, b) - np.exp(z)) / abs(stab(z / 2, b) - np.exp(z / 2))
+        assert abs(np.log2(ratio) - (p + 1)) < 0.2  # local error O(z^(p+1))
+    assert abs(stab(-1e10, R.B)) < 1e-8  # L-stable
+    for z in (-1e4, -1.0, 1e3j, -5 + 50j):
+        assert abs(stab(z, R.B)) <= 1.0
+
+
+def test_rosenbrock_beats_dopri5_tenfold_on_the_stiff_field():
+    T = 5.0
+    exact = STIFF.trajectory(SEEDS, T)
+    res = {}
+    for name, run in (("dopri5", lambda: trace(STIFF_GRID, SEEDS, rtol=1e-6, atol=1e-6, max_time=T)),
+                      ("ros34pw2", lambda: trace_rosenbrock(STIFF_GRID, SEEDS, rtol=1e-6, atol=1e-6,
+                                                            max_time=T))):
+        L = run()
+        assert np.all(L.line_data["reason"] == Reason.MAX_TIME)
+        assert np.all(np.isfinite(L.points))
+        end = L.points[L.offsets[1:] - 1]
+        res[name] = (np.abs(end - exact).max(), L.line_data["n_accepted"] + L.line_data["n_rejected"])
+    err_d, steps_d = res["dopri5"]
+    err_r, steps_r = res["ros34pw2"]
+    assert err_r < 20 * 1e-6 and err_r < 3 * err_d, res  # same accuracy...
+    assert np.all(10 * steps_r <= steps_d), res  # ...with at least 10x fewer steps
+
+
+def test_rosenbrock_records_stiffness_and_error_scales_with_tolerance():
+    T = 5.0
+    exact = STIFF.trajectory(SEEDS, T)
+    errs = []
+    for tol in (1e-4, 1e-7):
+        L = trace_rosenbrock(STIFF_GRID, SEEDS, rtol=tol, atol=tol, max_time=T)
+        assert np.all(L.line_data["stiff"] == 1) and np.all(L.line_data["stiff_steps"] >= 15)
+        errs.append(np.abs(L.points[L.offsets[1:] - 1] - exact).max())
+        assert errs[-1] < 20 * tol
+    assert errs[1] < errs[0] / 30
+    # a mild field is not stiff
+    rot = SolidBodyRotation()
+    fld = rot.to_field(9)
+    L = trace_rosenbrock(fld, [[0.5, 0.0, 0.1]], rtol=1e-6, atol=1e-6, max_time=3.0)
+    assert L.line_data["stiff"][0] == 0 and L.line_data["stiff_steps"][0] == 0
+    np.testing.assert_allclose(L.points[-1], rot.trajectory([[0.5, 0.0, 0.1]], 3.0)[0], atol=2e-5)
+
+
+def test_rosenbrock_on_a_curved_grid_field_and_in_arc_length():
+    fld = ABCFlow().to_field(17, bounds=[[0, 2 * np.pi]] * 3, periodic=False)
+    seeds = np.array([[3.0, 3.1, 2.9], [2.5, 3.7, 3.3]])
+    ref = trace(fld, seeds, method="dop853", rtol=1e-12, atol=1e-12, max_length=2.0,
+                parameter="arc_length")
+    for tol in (1e-5, 1e-8):
+        L = trace_rosenbrock(fld, seeds, rtol=tol, atol=tol, max_length=2.0, parameter="arc_length")
+        assert np.all(L.line_data["reason"] == Reason.MAX_LENGTH)
+        err = np.abs(L.points[L.offsets[1:] - 1] - ref.points[ref.offsets[1:] - 1]).max()
+        assert err < 50 * tol, (tol, err)
+        # time mode reaches the same curve: arc length integrated as the 4th component
+        Lt = trace_rosenbrock(fld, seeds, rtol=tol, atol=tol, max_length=2.0)
+        assert np.all(Lt.line_data["reason"] == Reason.MAX_LENGTH)
+        assert np.abs(Lt.points[Lt.offsets[1:] - 1] - ref.points[ref.offsets[1:] - 1]).max() < 50 * tol
+
+
+def test_rosenbrock_terminations():
+    # leaves the box at z = 10 exactly
+    L = trace_rosenbrock(STIFF_GRID, SEEDS[:1], rtol=1e-6, atol=1e-6)
+    assert L.line_data["reason"][0] == Reason.OUT_OF_DOMAIN
+    assert abs(L.points[-1, 2] - 10.0) < 1e-9
+    # seed outside: no vertex; a long line through tiny buffers: nothing truncated
+    L = trace_rosenbrock(STIFF_GRID, [[5.0, 0, 0], [0.5, -0.3, 0.0]], rtol=1e-9, atol=1e-9,
+                         max_steps=10_000)
+    assert L.line_data["reason"][0] == Reason.SEED_OUTSIDE and L.offsets[1] == 0
+    assert L.line_data["reason"][1] == Reason.OUT_OF_DOMAIN and len(L[1].points) > 1024
+    # step budget
+    L = trace_rosenbrock(STIFF_GRID, SEEDS[:1], rtol=1e-9, atol=1e-9, max_steps=20)
+    assert L.line_data["reason"][0] == Reason.MAX_STEPS
+    assert L.line_data["n_accepted"][0] + L.line_data["n_rejected"][0] == 20
+    # a NaN hole ahead: stops before it, every vertex finite
+    fld = STIFF.to_field((4, 4, 11))
+    fld.vector[:, :, 6:] = np.nan
+    L = trace_rosenbrock(fld, SEEDS[:1], rtol=1e-6, atol=1e-6)
+    assert L.line_data["reason"][0] == Reason.NAN_FIELD
+    assert np.all(np.isfinite(L.points)) and L.points[-1, 2] <= 5.0 + 1e-9
+    with pytest.raises(ValueError, match="direction"):
+        trace_rosenbrock(STIFF_GRID, SEEDS, direction="both")
