@@ -128,9 +128,13 @@ def _num(v) -> bool:
 
 
 def _tol(name, v, positive):
-    a = np.broadcast_to(np.asarray(v, dtype=float), (3,)) if np.ndim(v) <= 1 else None
-    if a is None or (np.ndim(v) == 1 and np.size(v) != 3):
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or not (a.ndim == 0 or a.shape == (3,)):
         raise OptionsError(f"option {name} must be a number or 3 numbers (x, y, z), got {v!r}")
+    a = np.broadcast_to(a, (3,))
     ok = np.all(np.isfinite(a)) and (np.all(a > 0) if positive else np.all(a >= 0))
     if not ok:
         raise OptionsError(f"option {name} must be {'positive' if positive else 'non-negative'} and finite, got {v!r}")

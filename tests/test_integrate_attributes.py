@@ -1,0 +1,98 @@
+"""Per-vertex attributes against exact values, computed only when requested."""
+
+import numpy as np
+import pytest
+
+from flowkit import Field, Grid, trace
+from flowkit.fields.analytic import ABCFlow, SolidBodyRotation
+from flowkit.integrate import attributes
+
+OMEGA = 0.7
+BOX = [[-3, 3], [-3, 3], [-1, 1]]
+
+
+def _rotation(grid=None):
+    rot = SolidBodyRotation(omega=OMEGA)
+    f = rot.to_field(grid=grid) if grid is not None else rot.to_field(shape=(13, 13, 5), bounds=BOX)
+    # a linear scalar: trilinear sampling of it is exact
+    pts = f.grid.node_points()
+    f.scalars["T"] = pts @ np.array([1.0, -2.0, 0.5]) + 3.0
+    return f
+
+
+RECTILINEAR = Grid.from_axes(np.r_[-3, -2.2, -1, -0.1, 0.5, 1.7, 3], np.linspace(-3, 3, 9) ** 1,
+                             np.r_[-1, -0.2, 0.3, 1], where="test grid")
+
+
+@pytest.mark.parametrize("grid", [None, RECTILINEAR], ids=["uniform", "rectilinear"])
+def test_attributes_match_exact_values(grid):
+    f = _rotation(grid)
+    seeds = np.array([[1.0, 0.0, 0.2], [0.0, -2.0, -0.5]])
+    names = ("time", "arc_length", "speed", "velocity", "vorticity", "vorticity_magnitude",
+             "T", "distance_to_seed")
+    lines = trace(f, seeds, max_time=2.5, rtol=1e-10, atol=1e-10, attributes=names)
+    assert set(lines.point_data) == set(names)
+    pd = lines.point_data
+    p = lines.points
+    seed = seeds[lines.line_index()]
+    r = np.linalg.norm(seed[:, :2], axis=1)
+    np.testing.assert_allclose(pd["speed"], OMEGA * r, rtol=1e-8)
+    np.testing.assert_allclose(pd["arc_length"], OMEGA * r * pd["time"], rtol=1e-8, atol=1e-12)
+    exact = np.stack([SolidBodyRotation(omega=OMEGA).trajectory(s[None], t)[0]
+                      for s, t in zip(seed, pd["time"])])
+    np.testing.assert_allclose(p, exact, atol=1e-8)
+    np.testing.assert_allclose(pd["velocity"], OMEGA * np.c_[-p[:, 1], p[:, 0], 0 * p[:, 0]],
+                               atol=1e-12)
+    # curl of a solid-body rotation: 2 omega along the axis (second-order differences are exact)
+    np.testing.assert_allclose(pd["vorticity"], np.broadcast_to([0, 0, 2 * OMEGA], p.shape),
+                               atol=1e-9)
+    np.testing.assert_allclose(pd["vorticity_magnitude"], 2 * OMEGA, rtol=1e-9)
+    np.testing.assert_allclose(pd["T"], p @ np.array([1.0, -2.0, 0.5]) + 3.0, atol=1e-12)
+    np.testing.assert_allclose(pd["distance_to_seed"], np.linalg.norm(p - seed, axis=1), atol=0)
+    assert pd["time"][lines.offsets[:-1]].tolist() == [0.0, 0.0]
+
+
+def test_periodic_curl_of_abc_is_the_field_itself():
+    f = ABCFlow().to_field(32, bounds=[[0, 2 * np.pi]] * 3, periodic=True)
+    w = attributes.curl(f)
+    # Beltrami flow: curl u = u; second-order differences err by about h^2 / 6
+    h = 2 * np.pi / 32
+    err = np.abs(w - f.vector).max()
+    assert err < 0.5 * h**2 * np.abs(f.vector).max()
+    assert err > 0  # really differences, not the field copied
+
+
+def test_no_curl_unless_a_vorticity_attribute_is_requested(monkeypatch):
+    f = _rotation()
+    calls = []
+    real = attributes.curl
+
+    def counting(field):
+        calls.append(1)
+        return real(field)
+
+    monkeypatch.setattr(attributes, "curl", counting)
+    trace(f, [1.0, 0.0, 0.0], max_time=1.0, attributes=("speed", "velocity", "time", "T"))
+    trace(f, [1.0, 0.0, 0.0], max_time=1.0)
+    assert calls == []
+    trace(f, [1.0, 0.0, 0.0], max_time=1.0, attributes=("vorticity", "vorticity_magnitude"))
+    assert calls == [1]  # once for both
+
+
+def test_no_attributes_unless_requested_and_clear_error_for_unknown():
+    f = _rotation()
+    lines = trace(f, [1.0, 0.0, 0.0], max_time=1.0)
+    assert lines.point_data == {}
+    assert set(lines.line_data) == {"seed_id", "reason", "n_accepted", "n_rejected"}
+    with pytest.raises(KeyError, match="unknown attribute 'pressure'.*available:.*T"):
+        trace(f, [1.0, 0.0, 0.0], max_time=1.0, attributes=("pressure",))
+
+
+def test_attributes_in_arc_length_parameterisation():
+    f = _rotation()
+    lines = trace(f, [2.0, 0.0, 0.0], max_length=3.0, parameter="arc_length",
+                  attributes=("time", "arc_length", "speed"), rtol=1e-10, atol=1e-10)
+    pd = lines.point_data
+    np.testing.assert_allclose(pd["time"], pd["arc_length"] / (OMEGA * 2.0), rtol=1e-8)
+    assert pd["arc_length"][-1] == pytest.approx(3.0, abs=1e-9)
+    assert isinstance(f, Field)
