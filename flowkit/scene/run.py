@@ -1,0 +1,197 @@
+"""Run a scene: for every snapshot, lines (from the cache, or traced), the lines file, and one
+image per view; each stage reports its progress and time.
+
+Snapshots run one after the other (flowkit.distributed is not in this tree yet; ``workers`` > 1
+says so instead of pretending).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..integrate import attributes as _attributes
+from ..integrate import trace as tracing
+from ..lines import Lines
+from .cache import LinesCache
+from .model import Scene, load_scene, placeholders
+from .plan import Plan, Snapshot, make_plan
+
+
+@dataclass
+class SnapshotResult:
+    index: int
+    time: float
+    action: str                       # hit | extend | trace | retrace | trace (no cache)
+    n_lines: int = 0
+    n_points: int = 0
+    lines_path: Path | None = None
+    images: dict[str, Path] = field(default_factory=dict)
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class RunResult:
+    plan: Plan
+    snapshots: list[SnapshotResult]
+    notes: list[str]
+    seconds: float = 0.0
+
+
+def stderr_report(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def run_scene(scene: Scene | str | Path, *, snapshot=None, out_dir=None, cache_dir=None,
+              use_cache: bool | None = None, workers: int | None = None, extra_attributes=(),
+              report=stderr_report, ctx=None) -> RunResult:
+    """Run ``scene`` (a Scene or a scene file path).
+
+    snapshot          overrides the scene's selection: "all", a position, or a list
+    out_dir           where relative output paths go (default: the scene file's directory)
+    cache_dir         overrides the scene's [cache] dir; use_cache overrides [cache] enabled
+    extra_attributes  traced besides those the styles read (benchmarks: "everything on")
+    report            callable taking one progress line (None: silent)
+    ctx               moderngl context (default: the process's headless EGL context)
+    """
+    t0 = time.perf_counter()
+    scene = scene if isinstance(scene, Scene) else load_scene(scene)
+    report = report or (lambda msg: None)
+    plan = make_plan(scene, snapshot, extra_attributes)
+    out = Path(out_dir) if out_dir is not None else scene.base
+    enabled = scene.cache_enabled if use_cache is None else use_cache
+    cache = LinesCache(cache_dir or scene.cache_dir) if enabled else None
+    notes = []
+    if workers is not None and workers > 1 and len(plan.snapshots) > 1:
+        notes.append(f"--workers {workers}: the Dask scale-out (flowkit.distributed) is not "
+                     "available in this flowkit yet; snapshots run one after the other")
+    _check_patterns(scene, plan)
+    for n in notes:
+        report(f"note: {n}")
+    results = []
+    for k, snap in enumerate(plan.snapshots):
+        tag = f"[{k + 1}/{len(plan.snapshots)} snapshot {snap.index} t={snap.time:g}]"
+        results.append(_run_snapshot(plan, snap, cache, out, ctx, lambda m, t=tag: report(
+            f"{t} {m}")))
+    total = time.perf_counter() - t0
+    report(f"scene done: {len(results)} snapshot(s), "
+           f"{sum(len(r.images) for r in results)} image(s) in {total:.2f} s")
+    return RunResult(plan, results, notes, total)
+
+
+def _check_patterns(scene: Scene, plan: Plan) -> None:
+    if len(plan.snapshots) < 2:
+        return
+    for key in ("lines", "images"):
+        pat = getattr(scene.outputs, key)
+        if pat is not None and not placeholders(pat) & {"snapshot", "time"}:
+            raise ValueError(f"{scene.path} [outputs]: {key} = {pat!r} would be overwritten by "
+                             f"each of the {len(plan.snapshots)} snapshots; put {{snapshot}} or "
+                             f"{{time}} in it")
+
+
+class _Stage:
+    """Times one stage and reports it when done."""
+
+    def __init__(self, res: SnapshotResult, name: str, report):
+        self.res, self.name, self.report = res, name, report
+
+    def __enter__(self):
+        self.t = time.perf_counter()
+        return self
+
+    def __exit__(self, exc_type, *exc):
+        dt = time.perf_counter() - self.t
+        self.res.seconds[self.name] = self.res.seconds.get(self.name, 0.0) + dt
+        if exc_type is None:
+            self.report(f"{self.name}: {getattr(self, 'msg', 'done')} ({dt:.2f} s)")
+
+
+def _run_snapshot(plan: Plan, snap: Snapshot, cache: LinesCache | None, out: Path, ctx,
+                  report) -> SnapshotResult:
+    scene = plan.scene
+    res = SnapshotResult(snap.index, snap.time, "trace")
+    entry = None
+    if cache is not None:
+        with _Stage(res, "cache", report) as st:
+            inputs = cache.inputs(plan, snap)
+            key = cache.key(inputs)
+            entry = cache.get(key)
+            res.action, missing = cache.decide(entry, plan.attributes)
+            st.msg = {"hit": "hit, no tracing",
+                      "extend": f"lines cached; {', '.join(missing)} to add on their vertices",
+                      "retrace": f"lines cached without {', '.join(missing)}, which only the "
+                                 "integrator gives: tracing again",
+                      "trace": "miss"}[res.action]
+    if res.action == "hit":
+        with _Stage(res, "read cache", report):
+            lines = cache.read(entry, plan.attributes)
+    else:
+        with _Stage(res, "load field", report) as st:
+            fld = snap.load(scene.field.vector)
+            seeds = plan.seed_points(fld)
+            st.msg = f"{fld.grid.shape} nodes, {len(seeds)} seeds"
+        if res.action == "extend":
+            with _Stage(res, "attributes", report) as st:
+                lines = _extend(cache.read(entry), fld, seeds, missing)
+                entry = cache.store(key, lines, inputs)
+                st.msg = f"{', '.join(missing)} computed on {lines.n_points} cached vertices"
+        else:
+            with _Stage(res, "trace", report) as st:
+                lines = tracing.trace(fld, seeds, plan.options)
+                st.msg = (f"{len(lines)} lines, {lines.n_points} vertices, attributes "
+                          f"{', '.join(plan.attributes) or 'none'}")
+            if cache is not None:
+                with _Stage(res, "cache", report) as st:
+                    cache.store(key, lines, inputs)
+                    st.msg = f"stored {key[:12]}"
+    lines = _only(lines, plan.attributes)
+    res.n_lines, res.n_points = len(lines), lines.n_points
+    fmt = {"snapshot": snap.index, "time": snap.time}
+    if scene.outputs.lines:
+        from ..io.lines_h5 import write_lines
+
+        with _Stage(res, "write lines", report) as st:
+            res.lines_path = write_lines(lines, _out(out, scene.outputs.lines.format(**fmt)))
+            st.msg = str(res.lines_path)
+    if scene.outputs.images:
+        _render(plan, lines, res, out, fmt, ctx, report)
+    return res
+
+
+def _only(lines: Lines, names) -> Lines:
+    """The lines with exactly the point attributes ``names`` (all per-line data kept)."""
+    pd = {a: lines.point_data[a] for a in names}
+    return Lines(lines.points, lines.offsets, pd, lines.line_data, lines.attrs)
+
+
+def _extend(lines: Lines, fld, seeds: np.ndarray, missing) -> Lines:
+    """Add attributes that depend only on the vertices, as the integrator computes them."""
+    seed_of = seeds[np.repeat(lines.line_data["seed_id"], lines.lengths)]
+    new = _attributes.compute(fld, missing, lines.points, None, None, seed_of)
+    return Lines(lines.points, lines.offsets, {**lines.point_data, **new}, lines.line_data,
+                 lines.attrs)
+
+
+def _out(out: Path, rel: str) -> Path:
+    p = Path(rel).expanduser()
+    p = p if p.is_absolute() else out / p
+    p.parent.mkdir(parents=True, exist_ok=True)
+    return p
+
+
+def _render(plan: Plan, lines: Lines, res: SnapshotResult, out: Path, fmt: dict, ctx, report):
+    from ..render import LineRenderer, save_png
+
+    scene = plan.scene
+    with LineRenderer(lines, ctx) as r:
+        for v in scene.views.values():
+            with _Stage(res, f"render {v.name}", report) as st:
+                img = r.render(scene.styles[v.style], v.size, v.camera)
+                path = _out(out, scene.outputs.images.format(view=v.name, style=v.style, **fmt))
+                res.images[v.name] = save_png(img, path)
+                st.msg = f"{path} ({v.size[0]}x{v.size[1]})"
