@@ -122,8 +122,9 @@ class OpenCLAdvance:
                 q.flush()
         for lo, hi, idx, _host_in, (op, opar, on, sfc, sic), ev_down in pending:
             cl.wait_for_events(ev_down)
-            out_p[lo:hi] = op
-            out_par[lo:hi] = opar
+            with np.errstate(invalid="ignore"):  # float32 slots past out_n hold garbage
+                out_p[lo:hi] = op
+                out_par[lo:hi] = opar
             out_n[lo:hi] = on
             sf[idx] = sfc
             si[idx] = sic
