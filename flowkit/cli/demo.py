@@ -1,32 +1,59 @@
 """``flowkit demo``: the main job on the built-in demo data (the OpenFOAM heated room).
 
-For now it loads the room and prints its summary; tracing and rendering steps extend ``demo``.
+Prints the room's summary, then runs the demo scene (examples/hotroom_scene.toml: trace, lines
+file, two styled views) with its outputs and its lines cache in ``--out`` (default ``out/``).
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
+_HERE = Path(__file__).resolve().parent.parent  # the flowkit package
+
+
+def scene_path() -> Path:
+    """examples/hotroom_scene.toml of the source tree (or flowkit/_data/ in a built wheel, where
+    the packaging step copies it with the data and the style it references)."""
+    for p in (_HERE.parent / "examples" / "hotroom_scene.toml", _HERE / "_data" / "hotroom_scene.toml"):
+        if p.is_file():
+            return p
+    raise FileNotFoundError(
+        f"{_HERE.parent / 'examples' / 'hotroom_scene.toml'}: the demo scene is not here; "
+        "flowkit demo runs from a source checkout (pip install -e .)"
+    )
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "demo", help="run the main job on the built-in heated-room data", description=__doc__
+        "demo", help="run the demo scene on the built-in heated-room data", description=__doc__
     )
     p.add_argument(
         "--snapshot",
-        type=int,
-        default=-1,
-        help="heated-room snapshot position (default -1: the last, t = 2000 s)",
+        default="-1",
+        help="heated-room snapshot position, positions a,b,c or 'all' (default -1: the last, "
+             "t = 2000 s)",
     )
+    p.add_argument("--out", default="out", help="directory for the outputs (default: out/)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    field = demo(snapshot=args.snapshot)
+    from ..scene import run_scene
+    from .scene import snapshot_arg
+
+    snap = snapshot_arg(args.snapshot)
+    field = demo(snapshot=snap if isinstance(snap, int) else -1)
     print(field.summary())
+    out = Path(args.out)
+    res = run_scene(scene_path(), snapshot=snap, out_dir=out, cache_dir=out / ".flowkit-cache")
+    for r in res.snapshots:
+        for path in ([r.lines_path] if r.lines_path else []) + list(r.images.values()):
+            print(f"wrote {path}")
     return 0
 
 
 def demo(snapshot: int = -1):
-    """Load the built-in heated room; later steps (trace, render) build on the Field returned."""
+    """Load the built-in heated room (the Field the demo scene traces)."""
     from ..datasets import hotroom
 
     return hotroom(snapshot=snapshot)
