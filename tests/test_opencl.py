@@ -294,3 +294,23 @@ def test_float64_refused_where_unsupported(monkeypatch):
     assert OpenCLAdvance().dtype == np.float32  # default falls back to float32
     with pytest.raises(ValueError, match="no float64 support"):
         OpenCLAdvance(dtype="float64")
+
+
+def test_cli_info_devices_and_trace_backend(tmp_path, capsys, fields):
+    from flowkit.cli import main
+    from flowkit.io import read_lines
+
+    assert main(["info", "--devices"]) == 0
+    out = capsys.readouterr().out
+    assert "opencl:0:0" in out and device.device_infos()[0].name in out
+    assert main(["info"]) == 2
+    assert "give a FILE (or --devices)" in capsys.readouterr().err
+    # flowkit trace --backend opencl:0:0 on the built-in room gives the numba lines
+    src = str(datasets.hotroom_path())
+    args = ["trace", src, "--seeds", "points:0.5,0.5,0.5:4,1,5:8,2,3", "--max-length", "3",
+            "--float64", "--quiet", "--attributes", "T,speed"]
+    assert main([*args, "-o", str(tmp_path / "n.h5")]) == 0
+    assert main([*args, "-o", str(tmp_path / "o.h5"), "--backend", "opencl:0:0"]) == 0
+    a, b = read_lines(tmp_path / "n.h5"), read_lines(tmp_path / "o.h5")
+    assert a.n_points > 3
+    assert_same(a, b, 10.0)

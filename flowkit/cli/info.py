@@ -17,7 +17,9 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "info", help="summarise a field, series or lines file", description=__doc__
     )
-    p.add_argument("file", help="field file (.npz .npy .h5 .vti .vtr .vtu .nc), .series or glob")
+    p.add_argument(
+        "file", nargs="?", help="field file (.npz .npy .h5 .vti .vtr .vtu .nc), .series or glob"
+    )
     p.add_argument("--vector", default=None, help="vector array name (default U, or the file's)")
     p.add_argument(
         "--snapshot", type=int, help="snapshot position in a series (negative: from the end)"
@@ -26,10 +28,19 @@ def register(subparsers) -> None:
     p.add_argument(
         "--data", choices=["point", "cell"], help="VTK files: point data (default) or cell data"
     )
+    # OpenCL devices (the opencl backend's hook: flowkit.integrate.opencl.device)
+    p.add_argument("--devices", action="store_true", help="list OpenCL platforms and devices")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    if args.devices:
+        from ..integrate.opencl.device import describe_devices
+
+        print(describe_devices())
+        return 0
+    if args.file is None:
+        raise CLIError("flowkit info: give a FILE (or --devices)")
     print(
         describe(
             args.file, vector=args.vector, snapshot=args.snapshot, time=args.time, data=args.data
