@@ -1,0 +1,609 @@
+"""Pathlines: particles carried by a time-dependent field given as a series of snapshots.
+
+The velocity between two snapshots at times t_k < t_k+1 is interpolated linearly in time,
+``v(x, t) = (1 - a) v_k(x) + a v_k+1(x)`` with ``a = (t - t_k) / (t_k+1 - t_k)``, and trilinearly in
+space (``flowkit.fields.interp``).  The driver walks the snapshot intervals in time order
+(reverse order for ``direction="backward"``) holding at most two snapshots in memory: snapshot
+k is dropped before snapshot k+2 is loaded.  In each interval a numba kernel advances every
+line with an adaptive explicit Runge–Kutta method taken from the method registry
+(``methods.py``: the same tableau data the streamline kernel uses, dopri5 by default, with its
+dense output); steps are clipped to the interval end because the interpolated field has a kink
+in time there.
+
+Why a kernel of its own: the streamline kernel (``kernel.py``) evaluates a steady field from the
+8 corner values of one cell gathered once per cell; it has no notion of time in the field.  This
+kernel shares the method tableaux, the trilinear interpolation (``interp.locate_axis``,
+``interp.trilinear_vector``), the error norm and the step-size controller of ``kernel.py`` (same
+formulas, kept in step by the tests on analytic fields) but evaluates two snapshots per stage.
+
+Seeds are released at given times (default: the start of the series, its end when backward).
+Every line records why it stopped: ``out_of_domain`` (the last vertex ON the boundary, found on
+the dense output), ``max_time`` (the duration since release, met exactly), ``max_length`` (on the
+dense output), ``max_steps``, ``step_underflow``, ``nan_field``, ``seed_outside`` (outside the
+domain, in a NaN cell, or released outside the series' time range: no vertex) and
+``left_time_range`` (reached the last snapshot time, or the first one going backward, with time
+to spare).  The ``time`` attribute is the physical time of each vertex (always stored).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from numba import njit, prange
+
+from ..fields import Field
+from ..fields.interp import locate_axis, trilinear_vector
+from ..lines import Lines
+from .options import OptionsError, TraceOptions
+from .reasons import REASON_NAMES, Reason
+
+# float state columns: position (3), time, arc length, step, previous error, k0 (u, v, w, |v|)
+F_Y, F_T, F_S, F_H, F_ERRP, F_K0 = 0, 3, 4, 5, 6, 7
+NF = 11
+# int state columns
+I_STATUS, I_REASON, I_NACC, I_NREJ, I_LASTREJ = 0, 1, 2, 3, 4
+NI = 5
+NEW, RUNNING, DONE = 0, 1, 2
+# float options
+O_RTOL, O_ATOL, O_SAFETY, O_FACMIN, O_FACMAX, O_BETA = 0, 3, 6, 7, 8, 9
+O_H0, O_HMIN, O_HMAX, O_MAXLEN, O_MAXTIME, O_STAG = 10, 11, 12, 13, 14, 15
+NFO = 16
+
+POINT_ATTRIBUTES = ("time", "arc_length", "speed", "velocity", "distance_to_seed")
+BUFFER_VERTICES = 1 << 22  # vertices held by one kernel launch (all lines together)
+
+R_OUT, R_MAXLEN, R_MAXTIME = int(Reason.OUT_OF_DOMAIN), int(Reason.MAX_LENGTH), int(Reason.MAX_TIME)
+R_MAXSTEPS, R_STAG, R_UNDER = int(Reason.MAX_STEPS), int(Reason.STAGNATION), int(Reason.STEP_UNDERFLOW)
+R_NAN, R_SEED, R_LEFT = int(Reason.NAN_FIELD), int(Reason.SEED_OUTSIDE), int(Reason.LEFT_TIME_RANGE)
+
+
+# -- the kernel -------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _axis(c, period, inv, x):
+    """Cell and local coordinate of x on one axis; beyond a bounded end the end cell's
+    polynomial is extended (local coordinate outside [0, 1]) so stages just outside stay smooth."""
+    n = c.size
+    if period > 0.0:
+        return locate_axis(c, period, inv, x)
+    xc = min(max(x, c[0]), c[n - 1])
+    i, t = locate_axis(c, 0.0, inv, xc)
+    if xc != x:
+        t = (x - c[i]) / (c[i + 1] - c[i])
+    return i, t
+
+
+@njit(cache=True)
+def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
+    """(1 - a) v0 + a v1 at (x, y, z) into k[row, 0:3] and the speed into k[row, 3];
+    returns False for NaN data or a NaN position."""
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        return False
+    i, tx = _axis(gx, period[0], inv[0], x)
+    j, ty = _axis(gy, period[1], inv[1], y)
+    m, tz = _axis(gz, period[2], inv[2], z)
+    a = (t - t0) / (t1 - t0)
+    u0, w0, s0, bad0 = trilinear_vector(v0, i, j, m, tx, ty, tz)
+    u1, w1, s1, bad1 = trilinear_vector(v1, i, j, m, tx, ty, tz)
+    if bad0 or bad1:
+        return False
+    u = (1.0 - a) * u0 + a * u1
+    v = (1.0 - a) * w0 + a * w1
+    w = (1.0 - a) * s0 + a * s1
+    k[row, 0] = u
+    k[row, 1] = v
+    k[row, 2] = w
+    k[row, 3] = math.sqrt(u * u + v * v + w * w)
+    return True
+
+
+@njit(cache=True, inline="always")
+def _dense(Q, comp, q, y0, hs, th):
+    """y0 + hs * Σ_j Q[comp, j] θ^(j+1)."""
+    acc = 0.0
+    for j in range(q - 1, -1, -1):
+        acc = acc * th + Q[comp, j]
+    return y0 + hs * (th * acc)
+
+
+@njit(cache=True)
+def _root(Q, comp, q, y0, hs, target, sgn):
+    """θ in [0, 1] where the dense output of ``comp`` reaches ``target`` (sgn * (value - target)
+    goes from < 0 at θ = 0 to >= 0 at θ = 1): Newton safeguarded by bisection."""
+    a, b = 0.0, 1.0
+    ga = sgn * (y0 - target)
+    gb = sgn * (_dense(Q, comp, q, y0, hs, 1.0) - target)
+    if ga >= 0.0:
+        return 0.0
+    if gb < 0.0:
+        return 1.0
+    th = -ga / (gb - ga)
+    for _ in range(60):
+        r = 0.0
+        dr = 0.0
+        for j in range(q - 1, -1, -1):
+            dr = dr * th + r
+            r = r * th + Q[comp, j]
+        g = sgn * (y0 + hs * th * r - target)
+        if g == 0.0:
+            return th
+        if g > 0.0:
+            b = th
+        else:
+            a = th
+        dg = sgn * hs * (r + th * dr)
+        nxt = th - g / dg if dg != 0.0 else 0.5 * (a + b)
+        if not (a < nxt < b):
+            nxt = 0.5 * (a + b)
+        if abs(nxt - th) <= 4e-16 or b - a <= 4e-16:
+            return nxt
+        th = nxt
+    return th
+
+
+@njit(cache=True)
+def _advance_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
+                  mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B):
+    S, n_err, fs, kexp = mi[0], mi[1], mi[2], mi[4]
+    q = mp.shape[1]
+    safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
+    hmin, hmax, stag, maxlen = fo[O_HMIN], fo[O_HMAX], fo[O_STAG], fo[O_MAXLEN]
+    max_steps = io[0]
+    expo1 = 1.0 / kexp - 0.75 * beta
+    k = np.empty((S, 4))
+    Q = np.empty((4, q))
+    yt = np.empty(3)
+    y = np.empty(4)  # position and arc length
+    out_n[slot] = 0
+    tlim = release[l] + d * fo[O_MAXTIME]
+
+    if si[l, I_STATUS] == NEW:
+        px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
+        inside = True
+        for a in range(3):
+            c = gx if a == 0 else (gy if a == 1 else gz)
+            if period[a] == 0.0 and not (c[0] <= seeds[l, a] <= c[c.size - 1]):
+                inside = False
+        t = release[l]
+        if not (inside and _velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, 0)):
+            si[l, I_STATUS] = DONE
+            si[l, I_REASON] = R_SEED
+            return
+        y[0], y[1], y[2], y[3] = px, py, pz, 0.0
+        n_acc = 0
+        n_rej = 0
+        last_rej = False
+        errp = 1e-4
+        h = fo[O_H0]
+        if h <= 0.0:
+            # Hairer's initial step (Hairer, Nørsett & Wanner I, II.4) on the position, as kernel.py
+            d0 = 0.0
+            d1 = 0.0
+            for a in range(3):
+                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a])
+                d0 += (y[a] / sc) ** 2
+                d1 += (k[0, a] / sc) ** 2
+            d0 = math.sqrt(d0 / 3.0)
+            d1 = math.sqrt(d1 / 3.0)
+            h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+            h0 = min(h0, hmax, max(abs(goal - t), 1e-300))
+            for a in range(3):
+                yt[a] = y[a] + d * h0 * k[0, a]
+            ok = _velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv,
+                           v0, v1, t0, t1, k, 1)
+            d2 = 0.0
+            for a in range(3):
+                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a])
+                d2 += ((k[1, a] - k[0, a]) / sc) ** 2
+            d2 = math.sqrt(d2 / 3.0) / h0
+            if not ok or max(d1, d2) <= 1e-15 or not math.isfinite(d2):
+                h1 = max(1e-6, h0 * 1e-3)
+            else:
+                h1 = (0.01 / max(d1, d2)) ** (1.0 / kexp)
+            h = min(100.0 * h0, h1)
+        h = d * min(h, hmax)
+        si[l, I_STATUS] = RUNNING
+        out_p[slot, 0, 0], out_p[slot, 0, 1], out_p[slot, 0, 2] = px, py, pz
+        out_t[slot, 0] = t
+        out_s[slot, 0] = 0.0
+        out_n[slot] = 1
+    else:
+        for a in range(3):
+            y[a] = sf[l, F_Y + a]
+        y[3] = sf[l, F_S]
+        t = sf[l, F_T]
+        h = sf[l, F_H]
+        errp = sf[l, F_ERRP]
+        for a in range(4):
+            k[0, a] = sf[l, F_K0 + a]
+        n_acc = si[l, I_NACC]
+        n_rej = si[l, I_NREJ]
+        last_rej = si[l, I_LASTREJ] != 0
+
+    reason = -1
+    while out_n[slot] < B and t != goal:
+        if n_acc + n_rej >= max_steps:
+            reason = R_MAXSTEPS
+            break
+        if stag > 0.0 and not (k[0, 3] >= stag):
+            reason = R_STAG
+            break
+        out = False  # standing on a bounded end and moving outwards
+        for a in range(3):
+            c = gx if a == 0 else (gy if a == 1 else gz)
+            mv = d * k[0, a]
+            if period[a] == 0.0 and ((y[a] <= c[0] and mv < 0.0) or (y[a] >= c[c.size - 1] and mv > 0.0)):
+                out = True
+        if out:
+            reason = R_OUT
+            break
+        # step size: the controller's, clipped to the interval end or the time limit
+        hs = h
+        rem_goal = d * (goal - t)
+        rem_lim = d * (tlim - t)
+        rem = min(rem_goal, rem_lim)
+        hit = abs(hs) >= rem
+        if hit:
+            hs = d * rem
+        for st in range(1, n_err):
+            for a in range(3):
+                acc = 0.0
+                for m in range(st):
+                    acc += ma[st, m] * k[m, a]
+                yt[a] = y[a] + hs * acc
+            if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
+                             v0, v1, t0, t1, k, st):
+                k[st, 0] = np.nan
+        y1 = np.empty(4)
+        e5 = 0.0
+        finite = True
+        for a in range(4):
+            acc = 0.0
+            ea = 0.0
+            for m in range(n_err):
+                acc += mb[m] * k[m, a]
+                ea += me[m] * k[m, a]
+            y1[a] = y[a] + hs * acc
+            if not math.isfinite(y1[a]):
+                finite = False
+            if a < 3:
+                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
+                e5 += (ea / sc) ** 2
+        err = abs(hs) * math.sqrt(e5 / 3.0)
+        if not (finite and math.isfinite(err)):
+            n_rej += 1  # a stage met NaN data: retry shorter
+            h = 0.25 * hs
+            last_rej = True
+            if abs(h) < hmin:
+                reason = R_NAN
+                break
+            continue
+        if err > 1.0:
+            n_rej += 1
+            h = hs * max(facmin, safety * err ** (-expo1))
+            last_rej = True
+            if abs(h) < hmin:
+                reason = R_UNDER
+                break
+            continue
+        # accepted: stages up to f(y1) and those only the dense output uses
+        ok = True
+        for st in range(n_err, S):
+            for a in range(3):
+                acc = 0.0
+                for m in range(st):
+                    acc += ma[st, m] * k[m, a]
+                yt[a] = y[a] + hs * acc
+            if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
+                             v0, v1, t0, t1, k, st):
+                ok = False
+        if not ok:
+            n_rej += 1
+            h = 0.25 * hs
+            last_rej = True
+            if abs(h) < hmin:
+                reason = R_NAN
+                break
+            continue
+        # Hairer's PI controller with Gustafsson's memory, as kernel.py
+        g = facmax if err == 0.0 else min(facmax, max(facmin, safety * errp ** beta / err ** expo1))
+        if last_rej:
+            g = min(g, 1.0)
+        errp = max(err, 1e-4)
+        hnext = hs * g
+        if g >= 1.0 and abs(h) > abs(hnext):
+            hnext = h  # the step was clipped to a time limit, not cut by its error
+        hnext = d * min(abs(hnext), hmax)
+        last_rej = False
+        n_acc += 1
+        # events on the dense output: a bounded end of the domain, the arc-length limit
+        for a in range(4):
+            for j in range(q):
+                acc = 0.0
+                for m in range(S):
+                    acc += mp[m, j] * k[m, a]
+                Q[a, j] = acc
+        th = 1.0
+        ev_axis = -1
+        ev_face = 0.0
+        for a in range(3):
+            c = gx if a == 0 else (gy if a == 1 else gz)
+            if period[a] != 0.0:
+                continue
+            if y1[a] < c[0]:
+                tha = _root(Q, a, q, y[a], hs, c[0], -1.0)
+                face = c[0]
+            elif y1[a] > c[c.size - 1]:
+                tha = _root(Q, a, q, y[a], hs, c[c.size - 1], 1.0)
+                face = c[c.size - 1]
+            else:
+                continue
+            if tha <= th:
+                th = tha
+                ev_axis = a
+                ev_face = face
+        ev_len = False
+        if y1[3] >= maxlen:
+            thl = _root(Q, 3, q, y[3], hs, maxlen, 1.0)
+            if thl < th or ev_axis < 0:
+                th = thl
+                ev_len = True
+                ev_axis = -1
+        if ev_axis >= 0 or ev_len:
+            for a in range(4):
+                y[a] = _dense(Q, a, q, y[a], hs, th)
+            if ev_len:
+                y[3] = maxlen
+                reason = R_MAXLEN
+            else:
+                y[ev_axis] = ev_face
+                reason = R_OUT
+            t = t + th * hs
+        else:
+            for a in range(4):
+                y[a] = y1[a]
+                k[0, a] = k[fs, a]
+            if hit:
+                if rem_lim <= rem_goal:
+                    t = tlim
+                    reason = R_MAXTIME
+                else:
+                    t = goal
+            else:
+                t = t + hs
+        h = hnext
+        n = out_n[slot]
+        out_p[slot, n, 0], out_p[slot, n, 1], out_p[slot, n, 2] = y[0], y[1], y[2]
+        out_t[slot, n] = t
+        out_s[slot, n] = y[3]
+        out_n[slot] = n + 1
+        if reason >= 0:
+            break
+
+    for a in range(3):
+        sf[l, F_Y + a] = y[a]
+    sf[l, F_S] = y[3]
+    sf[l, F_T] = t
+    sf[l, F_H] = h
+    sf[l, F_ERRP] = errp
+    for a in range(4):
+        sf[l, F_K0 + a] = k[0, a]
+    si[l, I_NACC] = n_acc
+    si[l, I_NREJ] = n_rej
+    si[l, I_LASTREJ] = 1 if last_rej else 0
+    if reason >= 0:
+        si[l, I_STATUS] = DONE
+        si[l, I_REASON] = reason
+
+
+@njit(cache=True, parallel=True)
+def _advance(active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
+             mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n):
+    """Advance the lines ``active`` to ``goal`` (or their end) inside one snapshot interval, or
+    until each has written B vertices."""
+    B = out_p.shape[1]
+    for n in prange(active.size):
+        _advance_line(active[n], n, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
+                      t0, t1, mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B)
+
+
+# -- the driver -------------------------------------------------------------------------------
+def pathlines(series, seeds, release=None, options: TraceOptions | None = None, **kw) -> Lines:
+    """Pathlines from ``seeds`` ((n, 3)) released at ``release`` (a time or one per seed; default
+    the first snapshot time, the last when ``direction="backward"``).
+
+    ``series``: a ``.series`` file, glob or multi-snapshot HDF5 path (``load_series``), or a list of
+    ``(time, Field | path | SnapshotRef)`` with at least two distinct times.  Snapshots are loaded
+    as the sweep reaches them and dropped when it has passed them (at most two in memory).
+    ``options``/``kw``: TraceOptions (method, rtol, atol, max_time = duration since release,
+    max_length, max_steps, step, min_step, max_step, stagnation, direction forward|backward,
+    attributes among time, arc_length, speed, velocity, distance_to_seed and scalar names).
+    """
+    opts = _check_options(options if options is not None else TraceOptions(), kw)
+    times, sources = _series(series)
+    seeds = np.ascontiguousarray(np.atleast_2d(np.asarray(seeds, np.float64)))
+    if seeds.ndim != 2 or seeds.shape[1] != 3:
+        raise ValueError(f"seeds must have shape (n, 3), got {np.shape(seeds)}")
+    n = seeds.shape[0]
+    d = -1.0 if opts.direction == "backward" else 1.0
+    if release is None:
+        release = times[-1] if d < 0 else times[0]
+    release = np.ascontiguousarray(np.broadcast_to(np.asarray(release, np.float64), (n,)))
+    if not np.all(np.isfinite(release)):
+        raise ValueError("release times must be finite")
+    order = range(len(times) - 1) if d > 0 else range(len(times) - 2, -1, -1)
+    sf = np.zeros((n, NF))
+    si = np.zeros((n, NI), np.int64)
+    chunks = []  # (owner, points, time, arc length, attributes) per launch
+    method = opts.method_obj
+    mc, ma, mb, me, _e2, mp, mi = method.kernel_arrays()
+    held: dict[int, Field] = {}
+    setup = fa = fb = None
+    for k in order:
+        fa = fb = None  # no reference may keep a passed snapshot alive
+        for old in [i for i in held if i not in (k, k + 1)]:
+            del held[old]  # drop the snapshot the sweep has passed before loading the next one
+        for i in (k, k + 1):
+            if i not in held:
+                held[i] = _load(sources[i], times[i])
+        fa, fb = held[k], held[k + 1]
+        if setup is None:
+            setup = _Setup(fa, opts)
+        setup.check_grid(fb)
+        ta, tb = times[k], times[k + 1]
+        goal = tb if d > 0 else ta
+        status = si[:, I_STATUS]
+        if d > 0:
+            starts = (release >= ta) & ((release < tb) | ((release == tb) & (k == len(times) - 2)))
+        else:
+            starts = (release <= tb) & ((release > ta) | ((release == ta) & (k == 0)))
+        active = np.flatnonzero((status == RUNNING) | ((status == NEW) & starts))
+        while active.size:
+            B = int(min(4096, max(16, BUFFER_VERTICES // active.size)))
+            out_p = np.empty((active.size, B, 3))
+            out_t = np.empty((active.size, B))
+            out_s = np.empty((active.size, B))
+            out_n = np.zeros(active.size, np.int64)
+            _advance(active, seeds, release, d, goal, *setup.grid, fa.vector, fb.vector, ta, tb,
+                     mc, ma, mb, me, mp, mi, setup.fo, setup.io, sf, si, out_p, out_t, out_s, out_n)
+            keep = np.arange(B)[None, :] < out_n[:, None]
+            owner = np.repeat(active, out_n)
+            pts, tv = out_p[keep], out_t[keep]
+            chunks.append((owner, pts, tv, out_s[keep],
+                           _sampled(opts.attributes, fa, fb, ta, tb, pts, tv)))
+            busy = (si[active, I_STATUS] == RUNNING) & (sf[active, F_T] != goal)
+            active = active[busy]
+    still = si[:, I_STATUS]
+    si[still == RUNNING, I_REASON] = R_LEFT
+    si[still == NEW, I_REASON] = R_SEED  # released outside the time range
+    return _assemble(chunks, n, seeds, release, si, opts, times, sources)
+
+
+def _check_options(opts: TraceOptions, kw) -> TraceOptions:
+    if not isinstance(opts, TraceOptions):
+        raise TypeError(f"options must be a TraceOptions, got {type(opts).__name__}")
+    opts = opts.replace(**kw) if kw else opts
+    if opts.direction not in ("forward", "backward"):
+        raise OptionsError(f"pathlines: option direction must be forward or backward, "
+                           f"got {opts.direction!r}")
+    if opts.parameter != "time":
+        raise OptionsError(f"pathlines: option parameter must be time, got {opts.parameter!r}")
+    if not opts.method_obj.adaptive:
+        raise OptionsError(f"pathlines: option method must be adaptive, got {opts.method!r}")
+    if opts.spacing is not None or opts.count is not None:
+        raise OptionsError("pathlines: options spacing and count are not supported "
+                           "(vertices are the accepted steps)")
+    for a in opts.attributes:
+        if a in ("vorticity", "vorticity_magnitude"):
+            raise OptionsError(f"pathlines: attribute '{a}' is not available (it would need the "
+                               f"curl of every snapshot)")
+    return opts
+
+
+def _series(series) -> tuple[np.ndarray, list]:
+    if isinstance(series, (str, Path)):
+        from ..fields.readers import load_series
+
+        series = load_series(series)
+    entries = sorted(((float(t), src) for t, src in series), key=lambda e: e[0])
+    times = np.array([t for t, _ in entries])
+    if times.size < 2 or np.any(np.diff(times) <= 0):
+        raise ValueError(f"pathlines need at least two snapshots with distinct times, got times "
+                         f"{times.tolist()}")
+    return times, [src for _, src in entries]
+
+
+def _load(src, t) -> Field:
+    if isinstance(src, Field):
+        return src
+    from ..fields.readers import load_field
+
+    return load_field(src)
+
+
+class _Setup:
+    """Kernel options derived once from the first snapshot (as streamlines derive them)."""
+
+    def __init__(self, f: Field, opts: TraceOptions):
+        g = f.grid
+        self.grid = g.kernel_args()
+        self.shape, self.axes = g.shape, (g.x, g.y, g.z)
+        self.scalars = set(f.scalars)
+        for a in opts.attributes:
+            if a not in POINT_ATTRIBUTES and a not in f.scalars:
+                have = ", ".join(list(POINT_ATTRIBUTES) + sorted(f.scalars))
+                raise KeyError(f"{f.source}: unknown pathline attribute '{a}' (available: {have})")
+        ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
+        vtyp = f.typical_speed()
+        cross = g.min_cell_size / (vtyp if vtyp > 0 else 1.0)
+        fo = np.zeros(NFO)
+        fo[O_RTOL:O_RTOL + 3] = opts.rtol
+        fo[O_ATOL:O_ATOL + 3] = opts.rtol * ext if opts.atol is None else opts.atol
+        fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX] = opts.safety, opts.min_factor, opts.max_factor
+        fo[O_BETA] = opts.beta
+        fo[O_H0] = opts.step or 0.0
+        fo[O_HMIN] = opts.min_step if opts.min_step is not None else 1e-10 * cross
+        fo[O_HMAX] = opts.max_step if opts.max_step is not None else np.inf
+        fo[O_MAXLEN], fo[O_MAXTIME] = opts.max_length, opts.max_time
+        # a particle at rest may move later: no stagnation stop unless asked for explicitly
+        fo[O_STAG] = opts.stagnation if opts.stagnation is not None else 0.0
+        self.fo = fo
+        self.io = np.array([opts.max_steps], np.int64)
+
+    def check_grid(self, f: Field):
+        g = f.grid
+        if g.shape != self.shape or not all(np.array_equal(a, b) for a, b in
+                                            zip((g.x, g.y, g.z), self.axes)):
+            raise ValueError(f"{f.source}: snapshot grid {g.shape} differs from the first "
+                             f"snapshot's {self.shape}; pathlines need one grid for the series")
+
+
+def _sampled(names, fa: Field, fb: Field, ta, tb, pts, tv) -> dict:
+    """Attributes that need the field at the vertices, interpolated in time like the velocity."""
+    out = {}
+    a = ((tv - ta) / (tb - ta))
+    for name in names:
+        if name in ("speed", "velocity"):
+            if "velocity" not in out:
+                out["velocity"] = (1 - a)[:, None] * fa.sample(pts)[0] + a[:, None] * fb.sample(pts)[0]
+        elif name in fa.scalars:
+            out[name] = (1 - a) * fa.sample_scalar(name, pts)[0] + a * fb.sample_scalar(name, pts)[0]
+    return out
+
+
+def _assemble(chunks, n, seeds, release, si, opts, times, sources) -> Lines:
+    """One Lines from the launches' vertices: grouped by line, each in integration order (the
+    sweep visits the intervals in that order; backward lines run from the release back in time)."""
+    if chunks:
+        owner = np.concatenate([c[0] for c in chunks])
+        order = np.argsort(owner, kind="stable")
+        owner = owner[order]
+        pts = np.concatenate([c[1] for c in chunks])[order]
+        tv = np.concatenate([c[2] for c in chunks])[order]
+        sv = np.concatenate([c[3] for c in chunks])[order]
+        sampled = {k: np.concatenate([c[4][k] for c in chunks])[order] for k in chunks[0][4]}
+    else:
+        owner, pts, tv, sv = np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0), np.zeros(0)
+        sampled = {"velocity": np.zeros((0, 3)), **{k: np.zeros(0) for k in opts.attributes}}
+    pd = {"time": tv}
+    for name in opts.attributes:
+        if name == "arc_length":
+            pd[name] = sv
+        elif name == "distance_to_seed":
+            pd[name] = np.linalg.norm(pts - seeds[owner], axis=1)
+        elif name == "speed":
+            pd[name] = np.linalg.norm(sampled["velocity"], axis=1)
+        elif name != "time":
+            pd[name] = sampled[name]
+    offsets = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=n))])
+    ld = {"seed_id": np.arange(n, dtype=np.int64), "reason": si[:, I_REASON].astype(np.int8),
+          "n_accepted": si[:, I_NACC].astype(np.int32), "n_rejected": si[:, I_NREJ].astype(np.int32),
+          "release_time": release.copy()}
+    attrs = {"kind": "pathlines", "method": opts.method, "rtol": str(opts.rtol),
+             "atol": str(opts.atol), "parameter": "time", "direction": opts.direction,
+             "max_length": opts.max_length, "max_time": opts.max_time, "max_steps": opts.max_steps,
+             "snapshot_times": np.asarray(times, np.float64),
+             "source": str(sources[0].source if isinstance(sources[0], Field) else sources[0]),
+             "reason_names": ",".join(REASON_NAMES)}
+    return Lines(pts, offsets, pd, ld, attrs)
