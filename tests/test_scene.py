@@ -1,0 +1,366 @@
+"""Scenes: the attributes traced are exactly those the drawn styles read; a style-only change
+re-renders from the cache without tracing (counted, not timed); a changed field file or option
+traces again; --explain says what and why; bad scene files get errors naming key and value; a
+scene over a series gives one image per snapshot; the demo scene plans what its styles read."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import flowkit.integrate.attributes as attributes_mod
+import flowkit.integrate.trace as trace_mod
+import flowkit.scene.plan as plan_mod
+from flowkit.cli import main
+from flowkit.fields import Field, Grid
+from flowkit.fields.writers import save_field, save_series
+from flowkit.io.lines_h5 import read_lines
+from flowkit.scene import SceneError, load_scene, make_plan, run_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+SIZE = "[96, 64]"
+
+
+def swirl(omega=1.0, rise=0.3, n=13) -> Field:
+    """Rotation about z with a rise along z on [-1, 1]^3, temperature T = 300 + z, p = x."""
+    g = Grid.regular((-1.0, -1.0, -1.0), (2 / (n - 1),) * 3, (n, n, n))
+    x, y, z = np.meshgrid(g.x, g.y, g.z, indexing="ij")
+    v = np.stack([-omega * y, omega * x, np.full_like(x, rise)], axis=-1)
+    return Field(g, v, {"T": 300.0 + z, "p": x.copy()}, source="swirl")
+
+
+def write_scene(tmp_path: Path, styles: str, views: str = "", trace: str = "",
+                field: str = 'file = "field.h5"', outputs: str = "", name="scene.toml") -> Path:
+    text = textwrap.dedent(f"""\
+        version = 1
+        [field]
+        {field}
+        [seeds]
+        spec = "line:0.2,0,-0.9:0.7,0,-0.9:4"
+        [trace]
+        max_length = 3.0
+        direction = "both"
+        {trace}
+        [styles]
+        """) + textwrap.dedent(styles) + textwrap.dedent(views) + textwrap.dedent(outputs)
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+PLAIN = """\
+    [styles.plain]
+    [[styles.plain.bands]]
+    color = "#203060"
+    width = 2
+    """
+SPEED = """\
+    [styles.fast]
+    [[styles.fast.bands]]
+    color = { cmap = "viridis", attribute = "speed", range = [0, 1.2] }
+    width = 2
+    [[styles.fast.bands]]
+    color = "#000000"
+    width = 1
+    depth_offset = 0.02
+    """
+# width mapped from vorticity_magnitude, colour from nothing: an attribute no colour displays
+WIDTH_ONLY = """\
+    [styles.swirly]
+    [[styles.swirly.bands]]
+    color = "#aa2020"
+    width = { attribute = "vorticity_magnitude", range = [0, 2], min = 1, max = 3 }
+    """
+
+
+@pytest.fixture
+def field_file(tmp_path):
+    return save_field(swirl(), tmp_path / "field.h5")
+
+
+@pytest.fixture
+def spy(monkeypatch):
+    """Counts calls into the integrator, field loading, the curl and scalar sampling."""
+    calls = {"trace": [], "load": 0, "curl": 0, "scalar": []}
+    real_trace, real_load = trace_mod.trace, plan_mod.load_field
+    real_curl, real_scalar = attributes_mod.curl, Field.sample_scalar
+
+    def trace(field, seeds, options=None, **kw):
+        calls["trace"].append(tuple(options.attributes))
+        return real_trace(field, seeds, options, **kw)
+
+    def load(*a, **kw):
+        calls["load"] += 1
+        return real_load(*a, **kw)
+
+    def curl(field):
+        calls["curl"] += 1
+        return real_curl(field)
+
+    def sample_scalar(self, name, points):
+        calls["scalar"].append(name)
+        return real_scalar(self, name, points)
+
+    monkeypatch.setattr(trace_mod, "trace", trace)
+    monkeypatch.setattr(plan_mod, "load_field", load)
+    monkeypatch.setattr(attributes_mod, "curl", curl)
+    monkeypatch.setattr(Field, "sample_scalar", sample_scalar)
+    return calls
+
+
+def run(path, **kw):
+    kw.setdefault("report", None)
+    return run_scene(path, **kw)
+
+
+# -- only what the styles read ----------------------------------------------------------------
+SCENES = {
+    # styles, views, extra trace keys -> traced attributes, curl computed, scalars sampled
+    "plain": (PLAIN, "", "", (), 0, []),
+    "colormap": (SPEED, "", "", ("speed",), 0, []),
+    "width_only": (WIDTH_ONLY, "", "", ("vorticity_magnitude",), 1, []),
+    # a file reference: grey colormap on T, width from speed (examples/styles)
+    "referenced": (f'tw = "{ROOT / "examples/styles/temperature_width.toml"}"\n', "", "",
+                   ("T", "speed"), 0, ["T"]),
+    # two styles defined, one view draws only 'fast': the T style costs nothing
+    "unused_style": (SPEED + WIDTH_ONLY.replace("vorticity_magnitude", "T"),
+                     f'[views.only]\nstyle = "fast"\nsize = {SIZE}\n', "", ("speed",), 0, []),
+    # per-line data (reason) is stored anyway: nothing extra traced
+    "line_data": (("[styles.why]\n[[styles.why.bands]]\n"
+                   'color = { cmap = "viridis", attribute = "reason", range = [0, 8] }\n'), "", "",
+                  (), 0, []),
+    # [trace] attributes adds to what the styles read, for the lines file
+    "extra": (SPEED, "", 'attributes = ["p"]', ("speed", "p"), 0, ["p"]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(SCENES))
+def test_attributes_traced_are_exactly_those_the_styles_read(tmp_path, field_file, spy, name):
+    styles, views, trace, want, curls, scalars = SCENES[name]
+    views = views or f"[views.main]\nsize = {SIZE}\n"
+    path = write_scene(tmp_path, styles, views, trace, outputs='[outputs]\nlines = "l.h5"\n'
+                       'images = "{view}.png"\n')
+    scene = load_scene(path)
+    assert make_plan(scene).attributes == want
+    res = run(path)
+    assert spy["trace"] == [want]
+    assert set(read_lines(tmp_path / "l.h5").point_data) == set(want)
+    assert spy["curl"] == curls
+    assert sorted(set(spy["scalar"])) == sorted(scalars)
+    assert len(res.snapshots[0].images) == len(scene.views)
+
+
+def test_vector_attribute_in_a_style_is_refused(tmp_path, field_file):
+    styles = SPEED.replace('"speed"', '"velocity"')
+    with pytest.raises(SceneError, match="'velocity', a 3-component attribute.*use speed"):
+        make_plan(load_scene(write_scene(tmp_path, styles)))
+
+
+# -- the cache ----------------------------------------------------------------------------------
+def test_style_or_camera_change_rerenders_from_cache_without_tracing(tmp_path, field_file, spy):
+    view = f'[views.main]\nsize = {SIZE}\ncamera = {{ azimuth = -60, elevation = 20 }}\n'
+    path = write_scene(tmp_path, SPEED, view)
+    first = run(path)
+    assert [s.action for s in first.snapshots] == ["trace"] and len(spy["trace"]) == 1
+    img1 = Path(first.snapshots[0].images["main"]).read_bytes()
+
+    write_scene(tmp_path, SPEED.replace("viridis", "magma").replace("width = 2", "width = 3"),
+                view.replace("-60", "30"))
+    second = run(path)
+    assert [s.action for s in second.snapshots] == ["hit"]
+    assert len(spy["trace"]) == 1 and spy["load"] == 1  # no trace, not even a field load
+    assert Path(second.snapshots[0].images["main"]).read_bytes() != img1  # it did re-render
+
+
+def test_changed_field_content_or_option_misses_the_cache(tmp_path, field_file, spy):
+    path = write_scene(tmp_path, SPEED)
+    assert run(path).snapshots[0].action == "trace"
+    # the same bytes written again (new mtime): content hash, so still a hit
+    field_file.write_bytes(field_file.read_bytes())
+    assert run(path).snapshots[0].action == "hit"
+    save_field(swirl(omega=1.5), field_file)
+    assert run(path).snapshots[0].action == "trace"
+    write_scene(tmp_path, SPEED, trace="rtol = 1e-8")
+    assert run(path).snapshots[0].action == "trace"
+    write_scene(tmp_path, SPEED, trace="rtol = 1e-8").write_text(
+        path.read_text().replace("0.7,0,-0.9:4", "0.7,0,-0.9:5"))
+    assert run(path).snapshots[0].action == "trace"
+    assert len(spy["trace"]) == 4
+    assert run(path, use_cache=False).snapshots[0].action == "trace" and len(spy["trace"]) == 5
+
+
+def test_a_new_attribute_is_added_on_cached_vertices_or_retraced(tmp_path, field_file, spy):
+    path = write_scene(tmp_path, SPEED, outputs='[outputs]\nlines = "l.h5"\n')
+    run(path)
+    # T on top of speed: computed on the cached vertices, no trace ...
+    t_style = SPEED.replace('color = "#000000"', 'color = { cmap = "gray", attribute = "T", '
+                            'range = [299, 301] }')
+    write_scene(tmp_path, t_style, outputs='[outputs]\nlines = "l.h5"\n')
+    res = run(path)
+    assert res.snapshots[0].action == "extend" and len(spy["trace"]) == 1
+    extended = read_lines(tmp_path / "l.h5")
+    # ... and equal to what a trace that asked for it gives
+    plan = make_plan(load_scene(path))
+    fld = swirl()
+    fresh = trace_mod.trace(fld, plan.seed_points(fld), plan.options)
+    np.testing.assert_array_equal(extended.point_data["T"], fresh.point_data["T"])
+    assert run(path).snapshots[0].action == "hit"
+    # time comes from the integrator only: re-trace, and say so
+    write_scene(tmp_path, t_style.replace('"speed"', '"time"'))
+    assert "only the integrator gives: re-trace" in make_plan(load_scene(path)).explain(
+        _cache(path))
+    res = run(path)
+    assert res.snapshots[0].action == "retrace" and spy["trace"][-1] == ("time", "T")
+
+
+def _cache(path):
+    from flowkit.scene import LinesCache
+
+    return LinesCache(load_scene(path).cache_dir)
+
+
+# -- --explain ----------------------------------------------------------------------------------
+def test_explain_says_what_is_computed_and_why(tmp_path, field_file, capsys, spy):
+    path = write_scene(tmp_path, SPEED + WIDTH_ONLY.replace("vorticity_magnitude", "T"),
+                       f'[views.side]\nstyle = "fast"\nsize = {SIZE}\n'
+                       f'[views.top]\nstyle = "fast"\nsize = {SIZE}\n')
+    assert main(["scene", str(path), "--explain"]) == 0
+    out = capsys.readouterr().out
+    assert "attributes traced: speed\n" in out
+    assert "  speed: field sampled at every vertex (trilinear)" in out
+    assert "    read by view 'side': style 'fast' band 1 colour (viridis)" in out
+    assert "    read by view 'top': style 'fast' band 1 colour (viridis)" in out
+    assert ("not computed (no style reads it): vorticity curl of the grid (vorticity, "
+            "vorticity_magnitude); scalar field sampling (e.g. T)") in out
+    assert "style 'swirly': inline  -- drawn by no view: nothing traced for it" in out
+    assert "  snapshot 0: miss: trace" in out
+    assert spy["trace"] == [] and not (tmp_path / "side_0.png").exists()  # explained, not run
+    assert main(["scene", str(path)]) == 0
+    capsys.readouterr()
+    assert main(["scene", str(path), "--explain"]) == 0
+    assert "  snapshot 0: hit: lines and attributes cached, no tracing" in capsys.readouterr().out
+
+
+# -- bad scene files ----------------------------------------------------------------------------
+OK_FIELD = '[field]\nfile = "field.h5"\n'
+OK_SEEDS = '[seeds]\nspec = "line:0,0,0:0.5,0,0:3"\n'
+OK_STYLES = "[styles.a]\n[[styles.a.bands]]\nwidth = 2\n"
+OK = OK_FIELD + OK_SEEDS + OK_STYLES
+BAD = {
+    "no_version": (OK, ["missing key 'version'"]),
+    "version_2": ("version = 2\n" + OK, ["version = 2", "expected 1"]),
+    "unknown_top": ("version = 1\nfeild = 1\n" + OK, ["unknown key 'feild'", "allowed keys"]),
+    "no_field": ("version = 1\n" + OK_SEEDS + OK_STYLES, ["missing table [field]"]),
+    "two_sources": ('version = 1\n[field]\nfile = "field.h5"\ndataset = "hotroom"\n' + OK_SEEDS
+                    + OK_STYLES, ["[field]", "exactly one of file, series or dataset"]),
+    "missing_file": ('version = 1\n[field]\nfile = "nope.h5"\n' + OK_SEEDS + OK_STYLES,
+                     ["[field]", "file = 'nope.h5'", "an existing file"]),
+    "dataset": ('version = 1\n[field]\ndataset = "attic"\n' + OK_SEEDS + OK_STYLES,
+                ["dataset = 'attic'", "'hotroom'"]),
+    "snapshot": ('version = 1\n[field]\nfile = "field.h5"\nsnapshot = "last"\n' + OK_SEEDS
+                 + OK_STYLES, ["snapshot = 'last'", "'all', a snapshot position"]),
+    "field_key": ('version = 1\n[field]\nfile = "field.h5"\nvectr = "U"\n' + OK_SEEDS
+                  + OK_STYLES, ["[field]", "unknown key 'vectr'", "vector"]),
+    "seed_spec": ("version = 1\n" + OK_FIELD + '[seeds]\nspec = "plane:0,0,0:1,0,0:3"\n'
+                  + OK_STYLES, ["[seeds]", "spec = 'plane:0,0,0:1,0,0:3'", "takes 4 parts"]),
+    "trace_key": ("version = 1\n" + OK + "[trace]\nrtoll = 1e-6\n",
+                  ["[trace]", "unknown key 'rtoll'", "rtol"]),
+    "trace_value": ("version = 1\n" + OK + "[trace]\nrtol = -1\n",
+                    ["[trace]", "rtol = -1", "must be positive"]),
+    "trace_direction": ("version = 1\n" + OK + '[trace]\ndirection = "sideways"\n',
+                        ["direction = 'sideways'", "forward"]),
+    "trace_bool": ("version = 1\n" + OK + "[trace]\nmax_length = true\n",
+                   ["max_length = True", "a number"]),
+    "style_band": ("version = 1\n" + OK_FIELD + OK_SEEDS
+                   + "[styles.a]\n[[styles.a.bands]]\nwidth = -2\n",
+                   ["[styles.a]", "band 1", "width = -2", ">= 0"]),
+    "style_cmap": ("version = 1\n" + OK_FIELD + OK_SEEDS + "[styles.a]\n[[styles.a.bands]]\n"
+                   "color = { cmap = 'nocmap_x', attribute = 'T', range = [0, 1] }\n",
+                   ["[styles.a]", "color.cmap = 'nocmap_x'"]),
+    "style_file": ("version = 1\n" + OK_FIELD + OK_SEEDS + '[styles]\na = "missing.toml"\n',
+                   ["[styles]", "a = 'missing.toml'", "a style file that exists"]),
+    "view_style": ("version = 1\n" + OK + '[views.v]\nstyle = "b"\n',
+                   ["[views.v]", "style = 'b'", "one of the scene's styles: a"]),
+    "view_size": ("version = 1\n" + OK + "[views.v]\nsize = [0, 10]\n",
+                  ["[views.v]", "size = [0, 10]", "[width, height]"]),
+    "view_camera": ("version = 1\n" + OK + "[views.v]\ncamera = { elevation = 400 }\n",
+                    ["[views.v].camera", "elevation = 400", "<= 360"]),
+    "view_key": ("version = 1\n" + OK + "[views.v]\nzoom = 2\n",
+                 ["[views.v]", "unknown key 'zoom'", "camera"]),
+    "image_pattern": ("version = 1\n" + OK + '[outputs]\nimages = "{veiw}.png"\n',
+                      ["[outputs]", "images = '{veiw}.png'", "{view}", "not {veiw}"]),
+    "two_views_one_name": ("version = 1\n" + OK + "[views.v]\n[views.w]\n"
+                           '[outputs]\nimages = "same.png"\n',
+                           ["images = 'same.png'", "with {view}", "2 views"]),
+    "lines_pattern": ("version = 1\n" + OK + '[outputs]\nlines = "{view}.h5"\n',
+                      ["lines = '{view}.h5'", "{snapshot}, {time}"]),
+    "animation": ("version = 1\n" + OK + '[outputs]\nanimation = "a.mp4"\n',
+                  ["unknown key 'animation'", "images, lines"]),
+    "not_toml": ("version = 1\n[field\n", ["not valid TOML"]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+def test_bad_scene_file_gets_its_error(tmp_path, field_file, capsys, name):
+    text, parts = BAD[name]
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    with pytest.raises(SceneError) as e:
+        load_scene(path)
+    msg = str(e.value)
+    assert str(path) in msg
+    for p in parts:
+        assert p in msg, f"{p!r} not in {msg!r}"
+    # the CLI prints it as one line, status 2
+    assert main(["scene", str(path), "--explain"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("flowkit scene: error: ") and err.count("\n") == 1
+
+
+def test_snapshot_out_of_range_is_named(tmp_path, field_file):
+    path = write_scene(tmp_path, PLAIN, field='file = "field.h5"\nsnapshot = 3')
+    with pytest.raises(SceneError, match=r"snapshot = 3 is not allowed.*has 1 snapshot"):
+        make_plan(load_scene(path))
+
+
+# -- series -------------------------------------------------------------------------------------
+def test_a_scene_over_a_series_renders_one_image_per_snapshot(tmp_path, spy, capsys):
+    fields = [swirl(omega=w) for w in (0.5, 1.0, 2.0)]
+    for f, t in zip(fields, (10.0, 20.0, 30.0)):
+        f.time = t
+    save_series(fields, tmp_path / "series.h5")
+    path = write_scene(tmp_path, SPEED, f"[views.v]\nsize = {SIZE}\n",
+                       field='file = "series.h5"',
+                       outputs='[outputs]\nimages = "img/{view}_{snapshot}_t{time:g}.png"\n'
+                               'lines = "lines/{snapshot}.h5"\n')
+    assert main(["scene", str(path), "--workers", "2", "--out", str(tmp_path / "o")]) == 0
+    _, err = capsys.readouterr()
+    names = sorted(p.name for p in (tmp_path / "o" / "img").iterdir())
+    assert names == ["v_0_t10.png", "v_1_t20.png", "v_2_t30.png"]
+    assert len(spy["trace"]) == 3 and "run one after the other" in err
+    assert "[3/3 snapshot 2 t=30] render v:" in err
+    # each snapshot's own field: the lines' speed scales with omega
+    speeds = [np.median(read_lines(tmp_path / "o" / "lines" / f"{i}.h5").point_data["speed"])
+              for i in range(3)]
+    assert speeds[0] < speeds[1] < speeds[2]
+    images = {(tmp_path / "o" / "img" / n).read_bytes() for n in names}
+    assert len(images) == 3
+    # --snapshot picks; a pattern without {snapshot} is refused for several snapshots
+    assert [s.index for s in run(path, snapshot=-1, out_dir=tmp_path / "o").snapshots] == [2]
+    write_scene(tmp_path, SPEED, f"[views.v]\nsize = {SIZE}\n", field='file = "series.h5"',
+                outputs='[outputs]\nimages = "one.png"\n')
+    with pytest.raises(ValueError, match=r"images = 'one.png' would be overwritten by each of "
+                                         r"the 3 snapshots"):
+        run(path)
+
+
+# -- the demo scene -----------------------------------------------------------------------------
+def test_demo_scene_plans_exactly_what_its_styles_read():
+    scene = load_scene(ROOT / "examples" / "hotroom_scene.toml")
+    plan = make_plan(scene)
+    assert plan.attributes == ("speed", "T")  # colour from speed, width from T; halo reads none
+    assert [s.index for s in plan.snapshots] == [4] and set(scene.views) == {"overview", "speed"}
+    assert scene.style_sources["halo"].endswith("examples/styles/halo.toml")
