@@ -19,12 +19,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .camera import Camera
+from .shapes import SHAPE_NAMES
 
 STYLE_VERSION = 1
 UNITS = ("pixels", "world")
 ANTIALIAS = ("msaa", "smooth", "none")
 PROJECTIONS = ("perspective", "orthographic")
 MAX_BANDS = 8
+MAX_RANGES = 8  # transfer function ranges
+MAX_CURVE_POINTS = 256  # control points of a user shape
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.\-]*$")
 
 RGBA = tuple[float, float, float, float]
@@ -57,14 +60,46 @@ class WidthMap:
 
 
 @dataclass(frozen=True)
+class Shape:
+    """Shape mapping function: the band's width times f(s), s = (x / ``length`` + phase) mod 1
+    with x = ``attribute`` (increasing along the line: ``arc_length`` for constant-size shapes,
+    ``time`` for shapes whose length shows speed).  ``name``: a built-in (SHAPE_NAMES) or
+    ``"custom"`` with ``points`` = piecewise-linear control points (s, f), s from 0 to 1
+    non-decreasing, f in 0..1."""
+
+    name: str
+    attribute: str = "arc_length"
+    length: float = 1.0
+    points: tuple[tuple[float, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class Pattern:
+    """Directional colour pattern f_d(x, b) = ((x / ``length`` + ``slope`` * b ** ``curve`` +
+    phase) mod 1) - ``fraction``, b in 0..1 the lateral position on the band: the band's own
+    colour where f_d < 0, ``color`` (constant or colormap) where f_d >= 0.  Width untouched."""
+
+    color: RGBA | ColorMap
+    attribute: str = "arc_length"
+    length: float = 1.0
+    slope: float = 0.0
+    curve: float = 1.0
+    fraction: float = 0.5
+
+
+@dataclass(frozen=True)
 class Band:
     """One band, mirrored on both sides of the centre line.  ``width`` is the width on ONE side
     (band 0 spans [-w0, w0], band 1 spans w0..w0+w1 on each side), in the style's units.
-    ``depth_offset`` pushes the band away from the viewer, in view-space (world) units."""
+    ``depth_offset`` pushes the band away from the viewer, in view-space (world) units.
+    ``shape`` multiplies the width by f(s) (so an inner band's shape moves the outer bands);
+    ``pattern`` switches between the band's colour and a second one."""
 
     color: RGBA | ColorMap = (0.0, 0.0, 0.0, 1.0)
     width: float | WidthMap = 1.0
     depth_offset: float = 0.0
+    shape: Shape | None = None
+    pattern: Pattern | None = None
 
     @property
     def max_width(self) -> float:
@@ -82,6 +117,26 @@ class LineStyle:
 
 
 @dataclass(frozen=True)
+class TransferRange:
+    """Attribute values in [range[0], range[1]) get line style ``style``; None discards them."""
+
+    range: tuple[float, float]
+    style: str | None
+
+
+@dataclass(frozen=True)
+class Transfer:
+    """Line style transfer function: per fragment, the value of ``attribute`` picks the range and
+    so the whole line style; values in no range are discarded.  ``blend`` > 0 blends the colours
+    of two adjacent styles over that many attribute units around their common bound (the
+    geometry switches at the bound)."""
+
+    attribute: str
+    ranges: tuple[TransferRange, ...]
+    blend: float = 0.0
+
+
+@dataclass(frozen=True)
 class Style:
     """A whole scene style.  Use :func:`load_style` for files or build it in Python:
     ``Style(styles={"default": LineStyle((Band(...), Band(...)))})``."""
@@ -94,6 +149,8 @@ class Style:
     samples: int = 4
     supersample: int = 1
     camera: Camera = field(default_factory=Camera)
+    transfer: Transfer | None = None
+    phase: float = 0.0  # added to every shape's and pattern's s, in periods (animation)
     version: int = STYLE_VERSION
 
     def __post_init__(self):
@@ -104,18 +161,41 @@ class Style:
         """The style drawn when no transfer function chooses (the first one)."""
         return next(iter(self.styles.values()))
 
+    def used_styles(self) -> list[str]:
+        """Names of the line styles drawn: those the transfer function maps ranges to, in range
+        order, or the first style when there is no transfer function."""
+        if self.transfer is None:
+            return [next(iter(self.styles))]
+        names: list[str] = []
+        for r in self.transfer.ranges:
+            if r.style is not None and r.style not in names:
+                names.append(r.style)
+        return names
+
     @property
     def max_total_width(self) -> float:
-        return max(s.total_width for s in self.styles.values())
+        """Half-width of the strip: the widest drawn style (0 if a transfer discards all)."""
+        return max((self.styles[n].total_width for n in self.used_styles()), default=0.0)
+
+    @property
+    def animated(self) -> bool:
+        """Whether some drawn band has a shape or pattern that ``phase`` moves."""
+        return any(b.shape is not None or b.pattern is not None
+                   for n in self.used_styles() for b in self.styles[n].bands)
 
     def attributes(self) -> list[str]:
-        """Point attributes the style reads, in first-use order (what the renderer uploads)."""
+        """Point attributes the drawn styles read, in first-use order (what the renderer
+        uploads and what a scene traces)."""
         names: list[str] = []
-        for ls in self.styles.values():
-            for b in ls.bands:
-                for spec in (b.color, b.width):
-                    if isinstance(spec, (ColorMap, WidthMap)) and spec.attribute not in names:
-                        names.append(spec.attribute)
+        if self.transfer is not None:
+            names.append(self.transfer.attribute)
+        for n in self.used_styles():
+            for b in self.styles[n].bands:
+                pc = b.pattern.color if b.pattern is not None else None
+                for spec in (b.color, b.width, b.shape, b.pattern, pc):
+                    a = getattr(spec, "attribute", None)
+                    if a is not None and a not in names:
+                        names.append(a)
         return names
 
 
@@ -187,19 +267,14 @@ def validate(style: Style) -> None:
         _fail(w, "supersample", style.supersample, "1, 2, 3 or 4")
     if not isinstance(style.styles, dict) or not style.styles:
         _fail(w, "styles", style.styles, "at least one line style with at least one band")
+    _number(w, "phase", style.phase)
     for sname, ls in style.styles.items():
         _name(w, "styles", sname)
         if not 1 <= len(ls.bands) <= MAX_BANDS:
             _fail(f"{w}.{sname}", "bands", f"{len(ls.bands)} bands", f"1 to {MAX_BANDS} bands")
         for i, b in enumerate(ls.bands):
             bw = f"style '{sname}' band {i + 1}"
-            if isinstance(b.color, ColorMap):
-                _name(bw, "color.attribute", b.color.attribute)
-                if not known_colormap(b.color.cmap):
-                    _fail(bw, "color.cmap", b.color.cmap, "a colormap name the 'cmap' package knows")
-                _range(bw, "color.range", b.color.range)
-            else:
-                _rgba(bw, "color", b.color)
+            _check_color(bw, "color", b.color)
             if isinstance(b.width, WidthMap):
                 _name(bw, "width.attribute", b.width.attribute)
                 _range(bw, "width.range", b.width.range)
@@ -208,8 +283,100 @@ def validate(style: Style) -> None:
             else:
                 _number(bw, "width", b.width, 0.0)
             _number(bw, "depth_offset", b.depth_offset, 0.0)
+            if b.shape is not None:
+                _check_shape(bw, b.shape)
+            if b.pattern is not None:
+                _check_pattern(bw, b.pattern)
         if ls.total_width <= 0:
             _fail(f"{w}.{sname}", "bands", "total width 0", "a positive total width")
+    if style.transfer is not None:
+        _check_transfer(w, style.transfer, style.styles)
+
+
+def _check_color(where, key, c) -> None:
+    if isinstance(c, ColorMap):
+        _name(where, f"{key}.attribute", c.attribute)
+        if not known_colormap(c.cmap):
+            _fail(where, f"{key}.cmap", c.cmap, "a colormap name the 'cmap' package knows")
+        _range(where, f"{key}.range", c.range)
+    else:
+        _rgba(where, key, c)
+
+
+def _check_shape(where, sh: Shape) -> None:
+    if not isinstance(sh, Shape):
+        _fail(where, "shape", sh, "a Shape")
+    if sh.name not in SHAPE_NAMES + ("custom",):
+        _fail(where, "shape.name", sh.name, ", ".join(map(repr, SHAPE_NAMES)) + " or 'custom' "
+              "(or give points = [[s, f], ...])")
+    _name(where, "shape.attribute", sh.attribute)
+    _number(where, "shape.length", sh.length, 0.0, lo_open=True)
+    if sh.name != "custom":
+        if sh.points:
+            _fail(where, "shape.points", list(sh.points), f"no points for the built-in '{sh.name}'")
+        return
+    pts = sh.points
+    allowed = (f"2 to {MAX_CURVE_POINTS} control points [s, f] with s from 0 to 1 "
+               "non-decreasing and f in 0..1")
+    if not isinstance(pts, (list, tuple)) or not 2 <= len(pts) <= MAX_CURVE_POINTS:
+        _fail(where, "shape.points", pts, allowed)
+    prev = 0.0
+    for i, p in enumerate(pts):
+        if not isinstance(p, (list, tuple)) or len(p) != 2:
+            _fail(where, f"shape.points[{i}]", p, "[s, f]")
+        sv = _number(where, f"shape.points[{i}][0]", p[0], 0.0, 1.0)
+        _number(where, f"shape.points[{i}][1]", p[1], 0.0, 1.0)
+        if sv < prev:
+            _fail(where, f"shape.points[{i}][0]", p[0], f"s >= the previous point's s ({prev})")
+        prev = sv
+    if pts[0][0] != 0 or pts[-1][0] != 1:
+        _fail(where, "shape.points", [list(p) for p in pts], allowed)
+
+
+def _check_pattern(where, pt: Pattern) -> None:
+    if not isinstance(pt, Pattern):
+        _fail(where, "pattern", pt, "a Pattern")
+    _check_color(where, "pattern.color", pt.color)
+    _name(where, "pattern.attribute", pt.attribute)
+    _number(where, "pattern.length", pt.length, 0.0, lo_open=True)
+    _number(where, "pattern.slope", pt.slope)
+    _number(where, "pattern.curve", pt.curve, 0.0, lo_open=True)
+    _number(where, "pattern.fraction", pt.fraction, 0.0, 1.0)
+
+
+def _bound(where, key, v) -> float:
+    """A transfer range bound: a number, or +-inf (TOML ``inf``) for an open end."""
+    if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isinf(v):
+        return float(v)
+    return _number(where, key, v)
+
+
+def _check_transfer(where, tf: Transfer, styles: dict) -> None:
+    tw = f"{where} [transfer]"
+    if not isinstance(tf, Transfer):
+        _fail(where, "transfer", tf, "a Transfer")
+    _name(tw, "attribute", tf.attribute)
+    _number(tw, "blend", tf.blend, 0.0)
+    if not isinstance(tf.ranges, (list, tuple)) or not 1 <= len(tf.ranges) <= MAX_RANGES:
+        _fail(tw, "ranges", tf.ranges, f"1 to {MAX_RANGES} [[transfer.ranges]] tables")
+    spans = []
+    for i, r in enumerate(tf.ranges):
+        rw = f"{tw} range {i + 1}"
+        if not isinstance(r.range, (list, tuple)) or len(r.range) != 2:
+            _fail(rw, "range", r.range, "[low, high] (inf allowed)")
+        lo, hi = (_bound(rw, f"range[{k}]", x) for k, x in enumerate(r.range))
+        if not lo < hi:
+            _fail(rw, "range", list(r.range), "[low, high] with low < high")
+        if r.style is not None and r.style not in styles:
+            _fail(rw, "style", r.style, "one of the styles " + ", ".join(map(repr, styles))
+                  + " (or no style: the range is not drawn)")
+        for j, (a, b) in enumerate(spans):
+            if lo < b and a < hi:
+                _fail(rw, "range", list(r.range), f"a range that does not overlap range {j + 1} "
+                      f"[{a}, {b}]")
+        spans.append((lo, hi))
+    if all(r.style is None for r in tf.ranges):
+        _fail(tw, "ranges", "no range with a style", "at least one range that names a style")
 
 
 # -- TOML -> model --------------------------------------------------------------------------------
@@ -221,22 +388,83 @@ def _check_keys(where: str, table: dict, allowed: set[str]):
             raise StyleError(f"{where}: unknown key '{k}'; allowed keys: {', '.join(sorted(allowed))}")
 
 
-def _band_from(where: str, t: dict) -> Band:
-    _check_keys(where, t, {"color", "width", "depth_offset"})
-    color = t.get("color", "#000000")
+def _color_from(where: str, key: str, color) -> RGBA | ColorMap:
     if isinstance(color, dict):
-        _check_keys(f"{where}.color", color, {"cmap", "attribute", "range"})
+        _check_keys(f"{where}.{key}", color, {"cmap", "attribute", "range"})
         for k in ("cmap", "attribute", "range"):
             if k not in color:
-                raise StyleError(f"{where}.color: missing key '{k}' (a colormap colour needs cmap, attribute, range)")
+                raise StyleError(f"{where}.{key}: missing key '{k}' (a colormap colour needs cmap, attribute, range)")
         if not isinstance(color["cmap"], str):
-            _fail(where, "color.cmap", color["cmap"], "a colormap name (string)")
-        color = ColorMap(color["cmap"], _name(where, "color.attribute", color["attribute"]),
-                         _range(where, "color.range", color["range"]))
+            _fail(where, f"{key}.cmap", color["cmap"], "a colormap name (string)")
+        color = ColorMap(color["cmap"], _name(where, f"{key}.attribute", color["attribute"]),
+                         _range(where, f"{key}.range", color["range"]))
         if not known_colormap(color.cmap):
-            _fail(where, "color.cmap", color.cmap, "a colormap name the 'cmap' package knows, e.g. 'viridis'")
+            _fail(where, f"{key}.cmap", color.cmap, "a colormap name the 'cmap' package knows, e.g. 'viridis'")
+        return color
+    return _rgba(where, key, color)
+
+
+def _shape_from(where: str, t) -> Shape:
+    if isinstance(t, str):  # shape = "arrow": arc length, period 1
+        t = {"name": t}
+    _check_keys(f"{where}.shape", t, {"name", "attribute", "length", "points"})
+    if "points" in t:
+        if t.get("name", "custom") != "custom":
+            _fail(where, "shape.name", t["name"], "'custom' (or no name) with points")
+        pts = t["points"]
+        if not isinstance(pts, list):
+            _fail(where, "shape.points", pts, "an array of [s, f] pairs")
+        name, pts = "custom", tuple(tuple(p) if isinstance(p, list) else p for p in pts)
+    elif "name" in t:
+        name, pts = t["name"], ()
     else:
-        color = _rgba(where, "color", color)
+        raise StyleError(f"{where}.shape: missing key 'name' (one of {', '.join(SHAPE_NAMES)}) "
+                         "or 'points' (a user shape)")
+    sh = Shape(name, t.get("attribute", "arc_length"), t.get("length", 1.0), pts)
+    _check_shape(where, sh)
+    return Shape(sh.name, sh.attribute, float(sh.length),
+                 tuple((float(a), float(b)) for a, b in sh.points))
+
+
+def _pattern_from(where: str, t) -> Pattern:
+    _check_keys(f"{where}.pattern", t, {"color", "attribute", "length", "slope", "curve",
+                                         "fraction"})
+    if "color" not in t:
+        raise StyleError(f"{where}.pattern: missing key 'color' (the second colour of the pattern)")
+    pt = Pattern(_color_from(where, "pattern.color", t["color"]),
+                 t.get("attribute", "arc_length"),
+                 *(_number(where, f"pattern.{k}", t.get(k, d))
+                   for k, d in (("length", 1.0), ("slope", 0.0), ("curve", 1.0),
+                                ("fraction", 0.5))))
+    _check_pattern(where, pt)
+    return pt
+
+
+def _transfer_from(where: str, t) -> Transfer:
+    tw = f"{where} [transfer]"
+    _check_keys(tw, t, {"attribute", "ranges", "blend"})
+    for k in ("attribute", "ranges"):
+        if k not in t:
+            raise StyleError(f"{tw}: missing key '{k}' (a transfer function needs attribute and "
+                             "[[transfer.ranges]] tables with range and style)")
+    if not isinstance(t["ranges"], list):
+        _fail(tw, "ranges", t["ranges"], "[[transfer.ranges]] tables")
+    ranges = []
+    for i, r in enumerate(t["ranges"]):
+        _check_keys(f"{tw} range {i + 1}", r, {"range", "style"})
+        if "range" not in r:
+            raise StyleError(f"{tw} range {i + 1}: missing key 'range' ([low, high], inf allowed)")
+        st = r.get("style")
+        if st is not None and not isinstance(st, str):
+            _fail(f"{tw} range {i + 1}", "style", st, "a style name")
+        rng = r["range"]
+        ranges.append(TransferRange(tuple(rng) if isinstance(rng, list) else rng, st))
+    return Transfer(t["attribute"], tuple(ranges), t.get("blend", 0.0))
+
+
+def _band_from(where: str, t: dict) -> Band:
+    _check_keys(where, t, {"color", "width", "depth_offset", "shape", "pattern"})
+    color = _color_from(where, "color", t.get("color", "#000000"))
     width = t.get("width", 1.0)
     if isinstance(width, dict):
         _check_keys(f"{where}.width", width, {"attribute", "range", "min", "max"})
@@ -250,7 +478,9 @@ def _band_from(where: str, t: dict) -> Band:
     else:
         width = _number(where, "width", width, 0.0)
     depth = _number(where, "depth_offset", t.get("depth_offset", 0.0), 0.0)
-    return Band(color, width, depth)
+    shape = _shape_from(where, t["shape"]) if "shape" in t else None
+    pattern = _pattern_from(where, t["pattern"]) if "pattern" in t else None
+    return Band(color, width, depth, shape, pattern)
 
 
 def _line_style_from(where: str, bands) -> LineStyle:
@@ -264,7 +494,7 @@ def _line_style_from(where: str, bands) -> LineStyle:
 def style_from_dict(data: dict, where: str = "style") -> Style:
     """Build a Style from parsed TOML (or an equivalent dict)."""
     top = {"version", "units", "scale", "background", "antialias", "samples", "supersample",
-           "camera", "bands", "styles"}
+           "camera", "bands", "styles", "transfer", "phase"}
     _check_keys(where, data, top)
     if "version" not in data:
         raise StyleError(f"{where}: missing key 'version' (this flowkit reads version = {STYLE_VERSION})")
@@ -303,6 +533,10 @@ def style_from_dict(data: dict, where: str = "style") -> Style:
             kw[k] = data[k]
     if "camera" in data:
         kw["camera"] = camera_from_dict(f"{where} [camera]", data["camera"])
+    if "transfer" in data:
+        kw["transfer"] = _transfer_from(where, data["transfer"])
+    if "phase" in data:
+        kw["phase"] = _number(where, "phase", data["phase"])
     try:
         return Style(styles=styles, **kw)
     except StyleError as e:  # checks shared with Python-built styles: name the file too

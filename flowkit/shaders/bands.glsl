@@ -1,13 +1,19 @@
-{# Per-band code, one macro per visual property.  Issue-6 features hook in here: a shape
-   multiplies width_of(), a colour pattern chooses inside color_of(). #}
-{% macro uniforms(b) %}
-{% if b.color == "cmap" %}
-uniform sampler2D u_cmap{{ b.index }};     // colormap LUT ({{ lut_size }} x 1)
-uniform vec2 u_crange{{ b.index }};        // t = attr * x + y maps the range to [0, 1]
+{# Per-band code: the band's uniforms and two functions, band<g>_width() (the band's width on one
+   side, times its shape) and band<g>_color(lat, bw) (its colour, or its directional colour
+   pattern, at lateral position lat in 0..1 across the band of width bw).  <g> is the band's
+   global number; attribute slots come from the flags, never names. #}
+{% macro color_uniforms(kind, prefix, g) %}
+{% if kind == "cmap" %}
+uniform sampler2D u_{{ prefix }}cmap{{ g }};     // colormap LUT ({{ lut_size }} x 1)
+uniform vec2 u_{{ prefix }}crange{{ g }};        // t = attr * x + y maps the range to [0, 1]
 {% else %}
-uniform vec4 u_color{{ b.index }};
+uniform vec4 u_{{ prefix }}color{{ g }};
 {% endif %}
-{% if b.width == "map" %}
+{% endmacro %}
+
+{% macro uniforms(b) %}
+{{ color_uniforms(b.color, "", b.index) }}
+{%- if b.width == "map" %}
 uniform vec4 u_wmap{{ b.index }};          // t = clamp(attr * x + y); width = mix(z, w, t)
 {% else %}
 uniform float u_width{{ b.index }};
@@ -15,20 +21,51 @@ uniform float u_width{{ b.index }};
 {% if depth_offset %}
 uniform float u_depth{{ b.index }};
 {% endif %}
+{% if b.shape != "none" %}
+uniform float u_shapel{{ b.index }};       // 1 / shape length
+{% endif %}
+{% if b.shape == "custom" %}
+uniform sampler2D u_curve{{ b.index }};    // user shape f(s), {{ curve_size }} texels, repeating
+{% endif %}
+{% if b.pattern %}
+uniform vec4 u_pat{{ b.index }};           // 1 / length, slope a, curve c, fraction w
+{{ color_uniforms(b.pattern_color, "p", b.index) }}
+{%- endif %}
 {% endmacro %}
 
-{% macro width_of(b) -%}
-{% if b.width == "map" -%}
-mix(u_wmap{{ b.index }}.z, u_wmap{{ b.index }}.w, clamp(g_attr{{ b.width_attr }} * u_wmap{{ b.index }}.x + u_wmap{{ b.index }}.y, 0.0, 1.0))
+{% macro color_value(kind, prefix, g, slot) -%}
+{% if kind == "cmap" -%}
+texture(u_{{ prefix }}cmap{{ g }}, vec2(clamp(g_attr{{ slot }} * u_{{ prefix }}crange{{ g }}.x + u_{{ prefix }}crange{{ g }}.y, 0.0, 1.0) * {{ (lut_size - 1) / lut_size }} + {{ 0.5 / lut_size }}, 0.5))
 {%- else -%}
-u_width{{ b.index }}
+u_{{ prefix }}color{{ g }}
 {%- endif %}
 {%- endmacro %}
 
-{% macro color_of(b) -%}
-{% if b.color == "cmap" -%}
-texture(u_cmap{{ b.index }}, vec2(clamp(g_attr{{ b.color_attr }} * u_crange{{ b.index }}.x + u_crange{{ b.index }}.y, 0.0, 1.0) * {{ (lut_size - 1) / lut_size }} + {{ 0.5 / lut_size }}, 0.5))
-{%- else -%}
-u_color{{ b.index }}
-{%- endif %}
-{%- endmacro %}
+{% macro functions(b) %}
+{% set g = b.index %}
+float band{{ g }}_width() {
+{% if b.width == "map" %}
+    float w = mix(u_wmap{{ g }}.z, u_wmap{{ g }}.w, clamp(g_attr{{ b.width_attr }} * u_wmap{{ g }}.x + u_wmap{{ g }}.y, 0.0, 1.0));
+{% else %}
+    float w = u_width{{ g }};
+{% endif %}
+{% if b.shape == "custom" %}
+    w *= texture(u_curve{{ g }}, vec2(fract(g_attr{{ b.shape_attr }} * u_shapel{{ g }} + u_phase), 0.5)).r;
+{% elif b.shape != "none" %}
+    w *= shape_{{ b.shape }}(fract(g_attr{{ b.shape_attr }} * u_shapel{{ g }} + u_phase));
+{% endif %}
+    return u_scale * w;
+}
+
+vec4 band{{ g }}_color(float lat, float bw) {
+{% if b.pattern %}
+    // f_d = ((x / l + a lat^c) mod 1) - w: own colour where f_d < 0, the second where >= 0
+    vec4 p = u_pat{{ g }};
+    float u = g_attr{{ b.pattern_attr }} * p.x + p.y * pow(clamp(lat, 0.0, 1.0), p.z) + u_phase;
+    float fu = fw_attr{{ b.pattern_attr }} * p.x + abs(p.y) * fw_b / max(bw, 1e-6);
+    return mix({{ color_value(b.color, "", g, b.color_attr) }}, {{ color_value(b.pattern_color, "p", g, b.pattern_color_attr) }}, pattern_coverage(u, fu, p.w));
+{% else %}
+    return {{ color_value(b.color, "", g, b.color_attr) }};
+{% endif %}
+}
+{% endmacro %}

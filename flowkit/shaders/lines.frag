@@ -1,10 +1,21 @@
 #version {{ glsl_version }}
-// Apply the line style to the strip: find the band under the fragment from its lateral
-// position, take the band's colour, push its depth back by the band's depth offset.
+// Apply the line style to the strip: pick the line style (transfer function), find the band
+// under the fragment from its lateral position and the bands' (shaped) widths, take the band's
+// colour (or colour pattern), push its depth back by the band's depth offset.
 {% import "bands.glsl" as bands with context %}
+{% import "shapes.glsl" as shapes_lib with context %}
 uniform float u_scale;      // global width scale
 {% if depth_offset %}
 uniform mat4 u_proj;
+{% endif %}
+{% if uses_phase %}
+uniform float u_phase;      // added to every shape's and pattern's s (animation), in periods
+{% endif %}
+{% for r in transfer %}
+uniform vec2 u_tf{{ loop.index0 }};        // transfer range {{ loop.index0 }}: [x, y)
+{% endfor %}
+{% if transfer_blend %}
+uniform float u_tfblend;    // half-width of the colour blend zone around a bound
 {% endif %}
 in float g_b;
 in float g_z;
@@ -17,25 +28,48 @@ out vec4 f_color;
 {{ bands.uniforms(b) }}
 {%- endfor %}
 {% endfor %}
+{% if pattern_slots %}
+float fw_b;                 // screen derivatives, taken in main() (uniform control flow)
+{% for k in pattern_slots %}
+float fw_attr{{ k }};
+{% endfor %}
+
+// fraction of a pixel footprint [u - fu/2, u + fu/2] where fract(u) >= w (box-filtered stripes)
+float pattern_ramp(float u, float w) { return floor(u) * (1.0 - w) + max(fract(u) - w, 0.0); }
+float pattern_coverage(float u, float fu, float w) {
+    float h = 0.5 * max(fu, 1e-5);
+    return clamp((pattern_ramp(u + h, w) - pattern_ramp(u - h, w)) / (2.0 * h), 0.0, 1.0);
+}
+{% endif %}
+{% for name in shapes %}
+{{ shapes_lib.define(name) }}
+{%- endfor %}
+{% for style in styles %}
+{% for b in style %}
+{{ bands.functions(b) }}
+{%- endfor %}
+{% endfor %}
 
 {% for style in styles %}
 {% set s = loop.index0 %}
 // Line style {{ s }}: {{ style | length }} band(s).  False: the fragment lies outside the style.
 bool style{{ s }}(float b, float fw, out vec4 color, out float depth) {
 {% for band in style %}
-    float e{{ loop.index0 }} = {% if not loop.first %}e{{ loop.index0 - 1 }} + {% endif %}u_scale * {{ bands.width_of(band) }};
+    float e{{ loop.index0 }} = {% if not loop.first %}e{{ loop.index0 - 1 }} + {% endif %}band{{ band.index }}_width();
 {% endfor %}
 {% set last = style | length - 1 %}
     if (b > e{{ last }}{% if smooth_edge %} + 0.5 * fw{% endif %}) return false;
 {% for band in style %}
 {% set i = loop.index0 %}
+{% set lo = "0.0" if loop.first else "e%d" % (i - 1) %}
     {{ "} else " if not loop.first else "" }}if ({{ "true" if loop.last else "b <= e%d" % i }}) {
-        color = {{ bands.color_of(band) }};
+        color = band{{ band.index }}_color((b - {{ lo }}) / max(e{{ i }} - {{ lo }}, 1e-6), e{{ i }} - {{ lo }});
 {% if smooth_bands and not loop.first %}
-        color = mix(color, {{ bands.color_of(style[i - 1]) }}, clamp((e{{ i - 1 }} - b) / fw + 0.5, 0.0, 1.0));
+{% set plo = "0.0" if i == 1 else "e%d" % (i - 2) %}
+        color = mix(color, band{{ style[i - 1].index }}_color(1.0, e{{ i - 1 }} - {{ plo }}), clamp((e{{ i - 1 }} - b) / fw + 0.5, 0.0, 1.0));
 {% endif %}
 {% if smooth_bands and not loop.last %}
-        color = mix(color, {{ bands.color_of(style[i + 1]) }}, clamp((b - e{{ i }}) / fw + 0.5, 0.0, 1.0));
+        color = mix(color, band{{ style[i + 1].index }}_color(0.0, e{{ i + 1 }} - e{{ i }}), clamp((b - e{{ i }}) / fw + 0.5, 0.0, 1.0));
 {% endif %}
         depth = {{ "u_depth%d" % band.index if depth_offset else "0.0" }};
 {% endfor %}
@@ -50,9 +84,41 @@ bool style{{ s }}(float b, float fw, out vec4 color, out float depth) {
 void main() {
     float b = abs(g_b);
     float fw = max(fwidth(g_b), 1e-6);
+{% if pattern_slots %}
+    fw_b = fw;
+{% for k in pattern_slots %}
+    fw_attr{{ k }} = fwidth(g_attr{{ k }});
+{% endfor %}
+{% endif %}
     vec4 color;
     float depth;
+{% if transfer %}
+    // line style transfer function: the attribute's range picks the whole line style
+    float tv = g_attr{{ transfer_attr }};
+{% for r in transfer %}
+{% set i = loop.index0 %}
+    {{ "else " if not loop.first else "" }}if (tv >= u_tf{{ i }}.x && tv < u_tf{{ i }}.y) {
+{% if r.style < 0 %}
+        discard;  // a range without a style is not drawn
+{% else %}
+        if (!style{{ r.style }}(b, fw, color, depth)) discard;
+{% for nb, t in [(r.prev, "1.0 - smoothstep(u_tf%d.x - u_tfblend, u_tf%d.x + u_tfblend, tv)" % (i, i)), (r.next, "smoothstep(u_tf%d.y - u_tfblend, u_tf%d.y + u_tfblend, tv)" % (i, i))] %}
+{% if nb >= 0 %}
+        {   // blend the colour towards the adjacent range's style near the common bound
+            float t = {{ t }};
+            vec4 c2;
+            float d2;
+            if (t > 0.0 && style{{ nb }}(b, fw, c2, d2)) color = mix(color, c2, t);
+        }
+{% endif %}
+{% endfor %}
+{% endif %}
+    }
+{% endfor %}
+    else discard;  // in no range
+{% else %}
     if (!style0(b, fw, color, depth)) discard;
+{% endif %}
 {% if depth_offset %}
     // move the fragment `depth` view-space units away from the viewer; window depth from the
     // projection's z and w rows (valid for perspective and orthographic projections alike)
