@@ -19,10 +19,17 @@ import numpy as np
 from ..io.atomic import atomic_path
 from ..lines import Lines
 from .camera import Camera
-from .colormaps import colormap_texture
 from .context import default_context
-from .shader_build import TEX_WIDTH, ShaderFlags, program_cache, shader_flags
-from .style import ColorMap, Style, StyleError, WidthMap, load_style
+from .shader_build import (
+    TEX_WIDTH,
+    ShaderFlags,
+    band_uniforms,
+    is_texture,
+    program_cache,
+    shader_flags,
+    style_texture,
+)
+from .style import Style, StyleError, load_style
 
 
 def _current(method):
@@ -245,12 +252,12 @@ class LineRenderer:
             }
             textures = [("u_points", self._points)]
             textures += [(f"u_attr{k}", self._attribute_texture(a)) for k, a in enumerate(attrs)]
-            textures += [(name, colormap_texture(ctx, value))
-                         for name, value in band_uniforms(style).items() if isinstance(value, str)]
+            values = band_uniforms(style)  # numbers, colormap names, user shapes
+            textures += [(name, style_texture(ctx, v)) for name, v in values.items() if is_texture(v)]
             for unit, (name, tex) in enumerate(textures):
                 tex.use(location=unit)
                 uniforms[name] = unit
-            uniforms.update({k: v for k, v in band_uniforms(style).items() if not isinstance(v, str)})
+            uniforms.update({k: v for k, v in values.items() if not is_texture(v)})
             uniforms["u_npoints"] = self.lines.n_points
             for name, value in uniforms.items():
                 if name in prog:  # the compiler drops uniforms it can prove unused
@@ -270,29 +277,6 @@ class LineRenderer:
         w, h = out.size
         data = out.read(components=4, alignment=1)
         return np.frombuffer(data, np.uint8).reshape(h, w, 4)[::-1].copy()
-
-
-def band_uniforms(style: Style) -> dict[str, object]:
-    """Uniform values of every band, named as the templates name them (global band index).
-    Colormap names are returned as strings; the renderer turns them into texture units."""
-    u: dict[str, object] = {}
-    g = 0
-    for ls in style.styles.values():
-        for b in ls.bands:
-            if isinstance(b.color, ColorMap):
-                lo, hi = b.color.range
-                u[f"u_cmap{g}"] = b.color.cmap
-                u[f"u_crange{g}"] = (1.0 / (hi - lo), -lo / (hi - lo))
-            else:
-                u[f"u_color{g}"] = tuple(b.color)
-            if isinstance(b.width, WidthMap):
-                lo, hi = b.width.range
-                u[f"u_wmap{g}"] = (1.0 / (hi - lo), -lo / (hi - lo), b.width.min, b.width.max)
-            else:
-                u[f"u_width{g}"] = float(b.width)
-            u[f"u_depth{g}"] = float(b.depth_offset)
-            g += 1
-    return u
 
 
 def render_lines(lines: Lines, style: Style | str | os.PathLike, size=(1920, 1080),
