@@ -156,3 +156,43 @@ def test_bad_pattern_gets_its_error(tmp_path, case):
         load_style(path)
     for part in [str(path), "band 1", *parts]:
         assert part in str(e.value), f"{part!r} not in {e.value}"
+
+
+# -- animation --------------------------------------------------------------------------------
+def test_cli_frames_write_numbered_pngs_and_a_looping_gif(tmp_path, capsys):
+    from PIL import Image
+
+    from flowkit.cli import main
+    from flowkit.io.lines_h5 import write_lines
+
+    n = 101
+    p = Probe(n=n, arc_length=np.linspace(0.0, 2.0, n))
+    h5 = tmp_path / "line.h5"
+    write_lines(p.lines, h5)
+    sfile = tmp_path / "s.toml"
+    sfile.write_text('version = 1\nantialias = "none"\n[camera]\nazimuth = -90\nelevation = 0\n'
+                     'projection = "orthographic"\nzoom = 2.9\n[[bands]]\ncolor = "#ffff00"\n'
+                     'width = 6\npattern = { color = "#0000ff", length = 0.4 }\n')
+    args = ["render", str(h5), "--style", str(sfile), "--size", "400x120", "--frames", "4"]
+    assert main([*args, "-o", str(tmp_path / "f.png")]) == 0
+    files = sorted(tmp_path.glob("f_*.png"))
+    assert [f.name for f in files] == [f"f_{k:04d}.png" for k in range(4)]
+    rows = [second_colour_share(np.asarray(Image.open(f)), int(p.centre)) for f in files]
+    t = [transitions(r) for r in rows]
+    # frame k is shifted upstream by k/4 of the period (0.4 world units)
+    step = 0.25 * 0.4 * p.px_per_world
+    for k in (1, 2, 3):
+        assert np.abs([t[k][np.argmin(np.abs(t[k] - (x - k * step)))] - (x - k * step)
+                       for x in t[0][2:-2]]).max() < 0.6
+    assert main([*args, "-o", str(tmp_path / "a.gif"), "--fps", "10"]) == 0
+    gif = Image.open(tmp_path / "a.gif")
+    assert gif.n_frames == 4 and gif.info["duration"] == 100 and gif.info["loop"] == 0
+    assert not list(tmp_path.glob(".*tmp*"))
+    # nothing to move, or an unknown format: one clear line
+    still = tmp_path / "still.toml"
+    still.write_text('version = 1\n[[bands]]\nwidth = 2\n')
+    assert main(["render", str(h5), "--style", str(still), "--frames", "3", "-o",
+                 str(tmp_path / "x.gif")]) == 2
+    assert "no band 'shape' or 'pattern'" in capsys.readouterr().err
+    assert main([*args, "-o", str(tmp_path / "x.avi")]) == 2
+    assert "-o" in capsys.readouterr().err

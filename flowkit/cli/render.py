@@ -1,4 +1,9 @@
-"""``flowkit render lines.h5 --style style.toml -o out.png --size 1920x1080 [camera options]``"""
+"""``flowkit render lines.h5 --style style.toml -o out.png --size 1920x1080 [camera options]``
+
+``--frames N`` animates the style's shapes and colour patterns (one period over N frames, so it
+loops): ``-o out.png`` writes out_0000.png..., ``-o out.gif`` an animated GIF, ``-o out.mp4`` an
+MP4 (optional imageio + imageio-ffmpeg).
+"""
 
 from __future__ import annotations
 
@@ -38,6 +43,10 @@ def register(subparsers) -> None:
     p.add_argument("--supersample", type=int, help="render k times larger and average (print)")
     p.add_argument("--context", choices=["egl", "standalone"], default="egl",
                    help="OpenGL context: headless EGL (default) or the platform default")
+    anim = p.add_argument_group("animation (moves shapes and colour patterns along the lines)")
+    anim.add_argument("--frames", type=int, help="render N frames, the patterns advancing one "
+                      "period in all: -o out.png writes out_0000.png..., .gif / .mp4 one file")
+    anim.add_argument("--fps", type=float, default=12.0, help="frames per second (GIF/MP4)")
     cam = p.add_argument_group("camera (overrides the style file's [camera])")
     cam.add_argument("--azimuth", type=float, help="degrees about the up axis")
     cam.add_argument("--elevation", type=float, help="degrees above the horizontal plane")
@@ -68,7 +77,36 @@ def run(args) -> int:
     if args.supersample is not None:
         style = dataclasses.replace(style, supersample=args.supersample)
     ctx = default_context() if args.context == "egl" else create_context(args.context)
+    if args.frames is not None:
+        return _animate(args, style, size, camera, ctx)
     image = render_file(args.lines, style, size, camera, ctx)
     path = save_png(image, args.output)
     print(f"wrote {path} ({size[0]}x{size[1]})")
+    return 0
+
+
+def _animate(args, style, size, camera, ctx) -> int:
+    from tqdm import tqdm
+
+    from ..io.lines_h5 import read_lines
+    from ..render import LineRenderer
+    from ..render.animate import FORMATS, render_frames, write_animation
+
+    n = args.frames
+    if n < 1:
+        raise CLIError(f"--frames {n}: expected an integer >= 1")
+    if not args.fps > 0:
+        raise CLIError(f"--fps {args.fps}: expected a number > 0")
+    if not args.output.lower().endswith(FORMATS):
+        raise CLIError(f"-o {args.output!r}: with --frames, write {', '.join(FORMATS)} "
+                       "(.png: numbered files)")
+    if not style.animated:
+        raise CLIError(f"--frames with {args.style}: the style has no band 'shape' or 'pattern' "
+                       "to move along the lines")
+    lines = read_lines(args.lines, attributes=style.attributes())
+    with LineRenderer(lines, ctx) as r, tqdm(total=n, unit="frame", desc="render") as bar:
+        paths = write_animation(render_frames(r, style, n, size, camera), args.output, n,
+                                args.fps, progress=bar.update)
+    where = paths[0] if len(paths) == 1 else f"{paths[0]} ... {paths[-1].name}"
+    print(f"wrote {where} ({n} frames, {size[0]}x{size[1]})")
     return 0
