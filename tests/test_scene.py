@@ -162,17 +162,22 @@ def test_vector_attribute_in_a_style_is_refused(tmp_path, field_file):
 # -- the cache ----------------------------------------------------------------------------------
 def test_style_or_camera_change_rerenders_from_cache_without_tracing(tmp_path, field_file, spy):
     view = f'[views.main]\nsize = {SIZE}\ncamera = {{ azimuth = -60, elevation = 20 }}\n'
-    path = write_scene(tmp_path, SPEED, view)
+    lines_out = '[outputs]\nlines = "l.h5"\n'
+    path = write_scene(tmp_path, SPEED, view, outputs=lines_out)
     first = run(path)
+    written = (tmp_path / "l.h5").stat()
     assert [s.action for s in first.snapshots] == ["trace"] and len(spy["trace"]) == 1
     img1 = Path(first.snapshots[0].images["main"]).read_bytes()
 
     write_scene(tmp_path, SPEED.replace("viridis", "magma").replace("width = 2", "width = 3"),
-                view.replace("-60", "30"))
+                view.replace("-60", "30"), outputs=lines_out)
     second = run(path)
     assert [s.action for s in second.snapshots] == ["hit"]
     assert len(spy["trace"]) == 1 and spy["load"] == 1  # no trace, not even a field load
     assert Path(second.snapshots[0].images["main"]).read_bytes() != img1  # it did re-render
+    # the lines file already holds these lines: not rewritten
+    again = (tmp_path / "l.h5").stat()
+    assert (again.st_ino, again.st_mtime_ns) == (written.st_ino, written.st_mtime_ns)
 
 
 def test_changed_field_content_or_option_misses_the_cache(tmp_path, field_file, spy):

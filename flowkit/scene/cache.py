@@ -8,7 +8,7 @@ function of the vertices only (speed, velocity, vorticity*, scalar fields, dista
 same ``attributes.compute`` the integrator calls, on the very vertices it produced, stored in
 float64).  ``time`` and ``arc_length`` come from the integrator itself: asking for them re-traces.
 
-Layout: ``DIR/<key>.h5`` (a lines file, float64 positions) and ``DIR/<key>.json`` (the inputs and
+Layout: ``DIR/<key>.h5`` (a lines file, float64 positions, lzf) and ``DIR/<key>.json`` (the inputs and
 the attribute names), both written atomically; the JSON is written last, so an entry exists only
 when both are complete.
 """
@@ -99,7 +99,9 @@ class LinesCache:
 
     def store(self, key: str, lines: Lines, inputs: dict) -> Entry:
         self.dir.mkdir(parents=True, exist_ok=True)
-        h5 = write_lines(lines, self.dir / f"{key}.h5", position_dtype="float64")
+        # lzf: gzip would cost about as much as the trace itself; the cache is local scratch
+        h5 = write_lines(lines, self.dir / f"{key}.h5", position_dtype="float64",
+                         compression="lzf")
         meta = {"inputs": inputs, "point_attributes": sorted(lines.point_data),
                 "line_attributes": sorted(lines.line_data)}
         with atomic_path(self.dir / f"{key}.json") as tmp:

@@ -115,7 +115,7 @@ def _run_snapshot(plan: Plan, snap: Snapshot, cache: LinesCache | None, out: Pat
                   report) -> SnapshotResult:
     scene = plan.scene
     res = SnapshotResult(snap.index, snap.time, "trace")
-    entry = None
+    entry = key = None
     if cache is not None:
         with _Stage(res, "cache", report) as st:
             inputs = cache.inputs(plan, snap)
@@ -156,11 +156,29 @@ def _run_snapshot(plan: Plan, snap: Snapshot, cache: LinesCache | None, out: Pat
         from ..io.lines_h5 import write_lines
 
         with _Stage(res, "write lines", report) as st:
-            res.lines_path = write_lines(lines, _out(out, scene.outputs.lines.format(**fmt)))
-            st.msg = str(res.lines_path)
+            path = _out(out, scene.outputs.lines.format(**fmt))
+            stamp = {"scene_lines_key": f"{key}:{','.join(plan.attributes)}"} if key else {}
+            if stamp and _stamp(path) == stamp["scene_lines_key"]:
+                st.msg = f"{path} unchanged (same lines and attributes)"
+            else:
+                write_lines(lines, path, attrs=stamp)
+                st.msg = str(path)
+            res.lines_path = path
     if scene.outputs.images:
         _render(plan, lines, res, out, fmt, ctx, report)
     return res
+
+
+def _stamp(path: Path) -> str | None:
+    """The cache key and attribute set a lines output was written from (None: unknown)."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            v = f.attrs.get("scene_lines_key")
+    except OSError:
+        return None
+    return v.decode() if isinstance(v, bytes) else v
 
 
 def _only(lines: Lines, names) -> Lines:
