@@ -154,9 +154,10 @@ def test_float32_within_bound(fields, ocl32):
 
     Bound (docs/opencl.md): |x32 - x64| <= C * (rtol + n_steps * eps32) * X * exp(lam * L), where
     X is the largest coordinate magnitude, n_steps the line's accepted steps, L its length and
-    lam a Lipschitz constant of the field; C = 10 covers the step sequences differing (the error
-    estimate carries float32 noise of eps32 / rtol relative).  Rotation preserves distances
-    (lam = 0); the room flow is slow and smooth (lam ~ max |grad u| ~ 0.3 / m).
+    lam a Lipschitz constant of the field; C = 1 (measured: at most 0.2 of the bound with C = 1;
+    the step sequences may differ a little, the error estimate carrying float32 noise of
+    eps32 / rtol relative).  Rotation preserves distances (lam = 0); the room flow is slow and
+    smooth (lam ~ max |grad u| ~ 0.3 / m).
     """
     rtol = 1e-5
     for name, lam in (("rotation", 0.0), ("hotroom", 0.3)):
@@ -171,11 +172,44 @@ def test_float32_within_bound(fields, ocl32):
             a, b = ref.offsets[i], ref.offsets[i + 1]
             n = ref.line_data["n_accepted"][i]
             L = kw["max_length"]
-            bound = 10 * (rtol + n * EPS32) * X * np.exp(lam * L)
+            bound = (rtol + n * EPS32) * X * np.exp(lam * L)
             err = np.abs(got.points[a:b] - ref.points[a:b]).max()
             assert err <= bound, (name, i, err, bound)
             # and float32 is not secretly float64: the difference is above float64 rounding
         assert np.abs(got.points - ref.points).max() > 1e-12
+
+
+def test_image3d_path(fields):
+    """The field as an image3d with hardware linear filtering (float32 texels).
+
+    On a linear field (rotation: the filter reproduces it exactly) the lines meet the float32
+    bound above.  On the room the filter cannot extend a cell's polynomial past its faces as the
+    cell-aware buffer path does, so stages beyond a face see the neighbour cell: the step
+    sequence changes and lines differ at the tolerance level, not the rounding level (measured
+    6.9e-4 of the extent at rtol 1e-5; asserted < 2e-3).  docs/opencl.md has the filter's weight
+    precision (PoCL: exact float32; NVIDIA: 8 fractional bits, emulated error 1e-3 of max |v|).
+    """
+    adv = OpenCLAdvance(dtype="float32", image=True)
+    assert "read_imagef" in _src(image=True) and "read_imagef" not in _src()
+    f = fields["rotation"]
+    kw = {"rtol": 1e-5, "spacing": 0.1, "max_length": 6.0}
+    ref = flowkit.trace(f, _seeds(f, 8, 3), **kw)
+    got = flowkit.trace(f, _seeds(f, 8, 3), backend=adv, **kw)
+    np.testing.assert_array_equal(got.offsets, ref.offsets)
+    for i in range(len(ref)):
+        a, b = ref.offsets[i], ref.offsets[i + 1]
+        bound = (1e-5 + ref.line_data["n_accepted"][i] * EPS32) * 1.0
+        assert np.abs(got.points[a:b] - ref.points[a:b]).max() <= bound
+    room = fields["hotroom"]
+    ref = flowkit.trace(room, _seeds(room, 8, 3), **kw)
+    got = flowkit.trace(room, _seeds(room, 8, 3), backend=adv, **kw)
+    np.testing.assert_array_equal(got.line_data["reason"], ref.line_data["reason"])
+    for i in range(len(ref)):
+        a = ref.points[ref.offsets[i]:ref.offsets[i + 1]]
+        b = got.points[got.offsets[i]:got.offsets[i + 1]]
+        m = min(len(a), len(b))
+        assert abs(len(a) - len(b)) <= 1 and m > 10
+        assert np.abs(a[:m] - b[:m]).max() <= 2e-3 * _extent(room)
 
 
 def test_seed_outside_and_nan_seeds(fields, ocl64):

@@ -18,6 +18,9 @@ from .device import select_device, supports_fp64
 
 DEFAULT_CHUNK = 65536  # lines per launch
 MIN_SPLIT = 2048  # at or above this many lines, at least two chunks so that copies overlap
+# a fixed work-group size: PoCL compiles a kernel per work-group size (a size that followed the
+# number of lines would recompile on every pass) and vectorises across the items of a group
+LOCAL_SIZE = 64
 
 
 class OpenCLAdvance:
@@ -30,7 +33,7 @@ class OpenCLAdvance:
     """
 
     def __init__(self, spec: str = "opencl", dtype: str | None = None, image: bool = False,
-                 chunk: int = DEFAULT_CHUNK):
+                 chunk: int = DEFAULT_CHUNK, local_size: int = LOCAL_SIZE):
         import pyopencl as cl
 
         self.cl = cl
@@ -49,6 +52,7 @@ class OpenCLAdvance:
         self.real = "double" if self.dtype == np.float64 else "float"
         self.image = bool(image)
         self.chunk = int(chunk)
+        self.local = int(local_size)
         self.ctx = _context(self.device)
         self.q_up, self.q_run, self.q_down = (cl.CommandQueue(self.ctx, self.device) for _ in range(3))
         self._field = None  # (key arrays, device buffers)
@@ -86,6 +90,8 @@ class OpenCLAdvance:
             uniform=bool(np.all(np.asarray(inv) > 0)), image=self.image)
         knl = codegen.kernel(self.ctx, self.device, flags, arrays)
         fbufs = self._field_buffers(gx, gy, gz, period, vec)
+        local = min(self.local, knl.get_work_group_info(
+            cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device))
         n = active.size
         B = out_p.shape[1]
         dt = self.dtype
@@ -113,7 +119,8 @@ class OpenCLAdvance:
                 args.append(fbufs[4])
             args += [fo_buf, np.int64(io[K.P_MAXSTEPS]), np.int32(io[K.P_PARAM]),
                      np.int32(io[K.P_EMIT]), dev_in[4], dev_in[5], *dev_out, np.int32(B)]
-            ev_run = knl(self.q_run, (m,), None, *args, wait_for=ev_up)
+            glob = -(-m // local) * local
+            ev_run = knl(self.q_run, (glob,), (local,), *args, wait_for=ev_up)
             self.launches += 1
             ev_down = [cl.enqueue_copy(self.q_down, h, d, is_blocking=False, wait_for=[ev_run])
                        for h, d in zip(host_out, dev_out + dev_in[4:])]
@@ -144,7 +151,7 @@ def field_image(ctx, vec, period):
     # OpenCL images are indexed (x fastest): the array must be (nz, ny, nx, 4)
     data = np.ascontiguousarray(rgba.transpose(2, 1, 0, 3))
     fmt = cl.ImageFormat(cl.channel_order.RGBA, cl.channel_type.FLOAT)
-    return cl.Image(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, fmt,
+    return cl.create_image(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, fmt,
                     shape=v.shape[:3], hostbuf=data)
 
 
