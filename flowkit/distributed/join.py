@@ -1,0 +1,43 @@
+"""Join part files, in task order, into one lines file: the same lines, attributes and metadata a
+single-process run writes (``trace_to_file``), streamed part by part so memory stays at one part.
+The output appears atomically; the parts are removed only once it has."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..io.lines_h5 import LinesWriter, read_lines
+
+
+def join_parts(parts, out, *, snapshots=None, attrs=None, position_dtype="float32",
+               remove=True) -> str:
+    """Append the parts (paths, in order) to ``out``.  ``snapshots``: one snapshot index per part,
+    stored as the line attribute ``snapshot`` (int32); ``attrs`` are added to the root metadata
+    (e.g. ``snapshot_times``).  Returns the output path (a str, cheap to send back)."""
+    parts = [Path(p) for p in parts]
+    missing = [str(p) for p in parts if not p.exists()]
+    if missing:
+        raise FileNotFoundError(f"{out}: {len(missing)} part file(s) missing, e.g. {missing[0]}")
+    writer = None
+    try:
+        for i, p in enumerate(parts):
+            lines = read_lines(p)
+            if snapshots is not None:
+                lines.line_data["snapshot"] = np.full(len(lines), snapshots[i], np.int32)
+            if writer is None:
+                writer = LinesWriter.like(lines, out, attrs={**lines.attrs, **(attrs or {})},
+                                          position_dtype=position_dtype)
+            writer.append(lines)
+        if writer is None:
+            raise ValueError(f"{out}: no parts to join")
+        writer.close()
+    except BaseException:
+        if writer is not None:
+            writer.abort()
+        raise
+    if remove:
+        for p in parts:
+            p.unlink(missing_ok=True)
+    return str(out)
