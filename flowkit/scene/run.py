@@ -1,8 +1,11 @@
 """Run a scene: for every snapshot, lines (from the cache, or traced), the lines file, and one
 image per view; each stage reports its progress and time.
 
-Snapshots run one after the other (flowkit.distributed is not in this tree yet; ``workers`` > 1
-says so instead of pretending).
+With ``workers`` > 1 and several snapshots to trace, the traces run on a Dask LocalCluster
+(``flowkit.distributed.trace_distributed``, one file per snapshot, float64 positions so the cache
+holds exactly what a local trace gives); loading cached lines and rendering stay in this process
+(one OpenGL context).  Without flowkit.distributed the snapshots run one after the other, and the
+run says so.
 """
 
 from __future__ import annotations
@@ -66,21 +69,61 @@ def run_scene(scene: Scene | str | Path, *, snapshot=None, out_dir=None, cache_d
     enabled = scene.cache_enabled if use_cache is None else use_cache
     cache = LinesCache(cache_dir or scene.cache_dir) if enabled else None
     notes = []
-    if workers is not None and workers > 1 and len(plan.snapshots) > 1:
-        notes.append(f"--workers {workers}: the Dask scale-out (flowkit.distributed) is not "
-                     "available in this flowkit yet; snapshots run one after the other")
     _check_patterns(scene, plan)
+    traced = {}
+    if workers is not None and workers > 1:
+        traced = _trace_on_cluster(plan, cache, workers, notes, report)
     for n in notes:
         report(f"note: {n}")
     results = []
     for k, snap in enumerate(plan.snapshots):
         tag = f"[{k + 1}/{len(plan.snapshots)} snapshot {snap.index} t={snap.time:g}]"
         results.append(_run_snapshot(plan, snap, cache, out, ctx, lambda m, t=tag: report(
-            f"{t} {m}")))
+            f"{t} {m}"), traced.get(snap.index)))
     total = time.perf_counter() - t0
     report(f"scene done: {len(results)} snapshot(s), "
            f"{sum(len(r.images) for r in results)} image(s) in {total:.2f} s")
     return RunResult(plan, results, notes, total)
+
+
+def _trace_on_cluster(plan: Plan, cache, workers: int, notes: list, report) -> dict:
+    """Trace every snapshot that needs a trace on ``workers`` Dask processes; {index: Lines}."""
+    todo = [s for s in plan.snapshots if cache is None or cache.decide(
+        cache.get(cache.key(cache.inputs(plan, s))), plan.attributes)[0] in ("trace", "retrace")]
+    if len(todo) < 2:
+        return {}
+    try:
+        from ..distributed import trace_distributed
+    except ImportError:
+        notes.append(f"--workers {workers}: the Dask scale-out (flowkit.distributed) is not "
+                     "available; snapshots run one after the other")
+        return {}
+    if plan.scene.seeds.lower().startswith("random:"):
+        notes.append(f"--workers {workers}: random seeds are drawn in each snapshot's field; "
+                     "snapshots run one after the other")
+        return {}
+    import tempfile
+
+    from ..integrate.seeds import parse_seed_spec
+    from ..io.lines_h5 import read_lines
+
+    src = plan.scene.field
+    if src.kind == "dataset":
+        from ..datasets import hotroom_path
+
+        source = hotroom_path()
+    else:
+        source = src.location
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="flowkit-scene-") as tmp:
+        paths = trace_distributed(source, parse_seed_spec(plan.scene.seeds),
+                                  Path(tmp) / "lines.h5", plan.options, workers=workers,
+                                  snapshots=[s.index for s in todo], per_snapshot=True,
+                                  vector=src.vector, position_dtype="float64", progress=False)
+        traced = {s.index: read_lines(p) for s, p in zip(todo, paths)}
+    report(f"trace: {len(todo)} snapshots on {workers} Dask workers "
+           f"({time.perf_counter() - t0:.2f} s)")
+    return traced
 
 
 def _check_patterns(scene: Scene, plan: Plan) -> None:
@@ -112,7 +155,7 @@ class _Stage:
 
 
 def _run_snapshot(plan: Plan, snap: Snapshot, cache: LinesCache | None, out: Path, ctx,
-                  report) -> SnapshotResult:
+                  report, traced: Lines | None = None) -> SnapshotResult:
     scene = plan.scene
     res = SnapshotResult(snap.index, snap.time, "trace")
     entry = key = None
@@ -127,7 +170,13 @@ def _run_snapshot(plan: Plan, snap: Snapshot, cache: LinesCache | None, out: Pat
                       "retrace": f"lines cached without {', '.join(missing)}, which only the "
                                  "integrator gives: tracing again",
                       "trace": "miss"}[res.action]
-    if res.action == "hit":
+    if traced is not None:  # traced on the cluster
+        lines = traced
+        if cache is not None:
+            with _Stage(res, "cache", report) as st:
+                cache.store(key, lines, inputs)
+                st.msg = f"stored {key[:12]}"
+    elif res.action == "hit":
         with _Stage(res, "read cache", report):
             lines = cache.read(entry, plan.attributes)
     else:
