@@ -66,10 +66,12 @@ bool style{{ s }}(float b, float fw, out vec4 color, out float depth) {
         color = band{{ band.index }}_color((b - {{ lo }}) / max(e{{ i }} - {{ lo }}, 1e-6), e{{ i }} - {{ lo }});
 {% if smooth_bands and not loop.first %}
 {% set plo = "0.0" if i == 1 else "e%d" % (i - 2) %}
-        color = mix(color, band{{ style[i - 1].index }}_color(1.0, e{{ i - 1 }} - {{ plo }}), clamp((e{{ i - 1 }} - b) / fw + 0.5, 0.0, 1.0));
+        // within half a pixel of a band boundary: blend with the neighbour (only there, so
+        // its colour -- texture, pattern -- is evaluated for few fragments)
+        if (b < e{{ i - 1 }} + 0.5 * fw) color = mix(color, band{{ style[i - 1].index }}_color(1.0, e{{ i - 1 }} - {{ plo }}), clamp((e{{ i - 1 }} - b) / fw + 0.5, 0.0, 1.0));
 {% endif %}
 {% if smooth_bands and not loop.last %}
-        color = mix(color, band{{ style[i + 1].index }}_color(0.0, e{{ i + 1 }} - e{{ i }}), clamp((b - e{{ i }}) / fw + 0.5, 0.0, 1.0));
+        if (b > e{{ i }} - 0.5 * fw) color = mix(color, band{{ style[i + 1].index }}_color(0.0, e{{ i + 1 }} - e{{ i }}), clamp((b - e{{ i }}) / fw + 0.5, 0.0, 1.0));
 {% endif %}
         depth = {{ "u_depth%d" % band.index if depth_offset else "0.0" }};
 {% endfor %}
