@@ -33,7 +33,7 @@ def _seeds(n, seed=0):
 @pytest.fixture(scope="module")
 def client():
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None, silence_logs=logging.CRITICAL) as cluster, \
+                                  dashboard_address=":0", silence_logs=logging.CRITICAL) as cluster, \
             distributed.Client(cluster) as c:
         yield c
 
@@ -143,7 +143,7 @@ def test_failed_task_is_retried_and_reported(tmp_path, monkeypatch):
     seeds = _seeds(300, 4)
     ref = _single(tmp_path, 0, seeds, "single.h5")
     with distributed.LocalCluster(processes=False, n_workers=1, threads_per_worker=1,
-                                  dashboard_address=None) as cluster, \
+                                  dashboard_address=":0") as cluster, \
             distributed.Client(cluster) as c:
         out = trace_distributed(hotroom_path(), seeds, tmp_path / "d.h5", OPTS, client=c,
                                 snapshots=[0], chunk_seeds=300, retries=1)
@@ -190,3 +190,30 @@ def test_seed_file_and_bad_inputs(client, tmp_path):
         trace_distributed(hotroom_path(), tmp_path / "bad.npy", tmp_path / "x.h5", client=client)
     with pytest.raises(ValueError, match="snapshot 7 out of range"):
         trace_distributed(hotroom_path(), seeds, tmp_path / "x.h5", client=client, snapshots=[7])
+
+
+def test_cli_series_and_pathlines_on_a_running_cluster(client, tmp_path, capsys):
+    from flowkit.cli import main
+    from flowkit.integrate.seeds import parse_seed_spec
+
+    address = client.scheduler.address
+    seeds = parse_seed_spec("random:60:7", load_field(SERIES[0][1]))
+    out = tmp_path / "cli.h5"
+    assert main(["trace", str(hotroom_path()), "-o", str(out), "--seeds", "random:60:7",
+                 "--max-steps", "3000", "--snapshots", "all", "--scheduler", address,
+                 "--chunk-seeds", "25"]) == 0
+    assert "300 seed x snapshot traces" in capsys.readouterr().out
+    lines = read_lines(out)
+    snap = lines.line_data.pop("snapshot")
+    for s in (0, 4):
+        assert lines[snap == s].equals(_single(tmp_path, s, seeds, f"ref{s}.h5"))
+    out = tmp_path / "paths.h5"
+    assert main(["trace", str(hotroom_path()), "-o", str(out), "--seeds", "random:60:7",
+                 "--pathlines", "--release", "800", "--attributes", "T", "--scheduler", address,
+                 "--quiet"]) == 0
+    ref = pathlines(hotroom_path(), seeds, 800.0, TraceOptions(attributes=("T",)))
+    got = read_lines(out)
+    assert len(got) == 60 and got.equals(ref, rtol=0, atol=1e-5)  # positions stored float32
+    assert main(["trace", str(hotroom_path()), "-o", str(out), "--snapshots", "x",
+                 "--scheduler", address]) == 2
+    assert "--snapshots 'x'" in capsys.readouterr().err

@@ -23,7 +23,7 @@ def connect(client=None, scheduler: str | None = None, workers: int | None = Non
     ``client``: used as is (and left open).  ``scheduler``: an address such as
     ``tcp://host:8786`` of a running cluster (the connection is closed afterwards, the cluster
     stays).  Otherwise a LocalCluster of ``workers`` processes (default: one per core), one thread
-    each, no dashboard, shut down when the job ends.
+    each, its dashboard on a free port, shut down when the job ends.
     """
     if sum(x is not None for x in (client, scheduler)) > 1:
         raise ValueError("give a dask client or a scheduler address, not both")
@@ -39,7 +39,7 @@ def connect(client=None, scheduler: str | None = None, workers: int | None = Non
     n = default_workers() if workers is None else int(workers)
     if n < 1:
         raise ValueError(f"workers must be at least 1, got {workers!r}")
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                       silence_logs=logging.CRITICAL) as cluster, Client(cluster) as c:
         yield c
 
