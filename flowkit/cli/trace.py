@@ -9,6 +9,7 @@ import time
 
 
 def register(subparsers) -> None:
+    from ..distributed.cli import add_scale_options
     from ..integrate.methods import METHODS
     from ..integrate.seeds import SPEC_HELP
 
@@ -38,6 +39,7 @@ def register(subparsers) -> None:
     p.add_argument("--float64", action="store_true", help="store positions as float64")
     p.add_argument("--backend", default="numba", help="numba (default) or opencl[:PLATFORM[:DEVICE]]")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    add_scale_options(p)
     p.set_defaults(func=run)
 
 
@@ -47,8 +49,6 @@ def run(args) -> int:
     from ..integrate.seeds import parse_seed_spec
     from ..integrate.trace import trace_to_file
 
-    field = load_field(args.field, vector=args.vector)
-    seeds = parse_seed_spec(args.seeds, field)
     opts = TraceOptions(
         method=args.method, rtol=args.rtol, atol=args.atol, step=args.step,
         max_length=args.max_length, max_time=args.max_time, max_steps=args.max_steps,
@@ -56,6 +56,12 @@ def run(args) -> int:
         attributes=args.attributes, spacing=args.spacing, count=args.count,
         progress=False if args.quiet else None,
     )
+    from ..distributed import cli as scale
+
+    if scale.wanted(args):  # --workers, --scheduler, series, pathlines: flowkit/distributed/cli.py
+        return scale.run(args, opts)
+    field = load_field(args.field, vector=args.vector)
+    seeds = parse_seed_spec(args.seeds, field)
     if math.isinf(opts.max_length) and math.isinf(opts.max_time) and args.max_steps == 100_000:
         print("flowkit trace: note: no --max-length or --max-time; lines end at the boundary, "
               "a stagnation point or after --max-steps", file=sys.stderr)
