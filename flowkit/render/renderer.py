@@ -1,14 +1,18 @@
 """moderngl line-style renderer: Lines in, RGBA image out.
 
-Geometry goes to the GPU once per ``LineRenderer``: float32 positions (+ line number) in a
-texture, a triangle-strip index buffer (two strip vertices per point, restart between lines), and
-one float32 texture per attribute a style reads (uploaded the first time a style reads it).  A render binds the program for the style's flags (cached), sets uniforms and textures, and
-draws into a multisampled framebuffer that is resolved and read back.
+Geometry goes to the GPU once per ``LineRenderer``: float32 positions in a texture and one
+float32 texture per attribute a style reads (uploaded the first time a style reads it).  Per
+frame (when the camera, size or style tolerances change) ``simplify.select`` picks the vertices
+that matter at this zoom and uploads their ids (a small int buffer) and the triangle-strip
+indices (two strip vertices per kept point, restart between runs).  A render binds the program
+for the style's flags (cached), sets uniforms and textures, and draws into a (multisampled)
+framebuffer that is resolved and read back.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 import os
 from pathlib import Path
 from typing import Self
@@ -29,7 +33,17 @@ from .shader_build import (
     shader_flags,
     style_texture,
 )
+from .simplify import (
+    arc_parameter,
+    attribute_importance,
+    attribute_tolerances,
+    geometry_importance,
+    runs,
+    select,
+)
 from .style import Style, StyleError, load_style
+
+TOLERANCE = 0.25  # default level-of-detail tolerance, output pixels (0: draw every vertex)
 
 
 def _current(method):
@@ -41,30 +55,6 @@ def _current(method):
             return method(self, *args, **kwargs)
 
     return wrapper
-
-
-def strip_indices(lines: Lines) -> np.ndarray:
-    """uint32 indices of one triangle strip per run of >= 2 consecutive finite points of a line
-    (vertex 2i and 2i+1 are the two sides at point i), runs separated by the restart index."""
-    finite = np.all(np.isfinite(lines.points), axis=1)
-    line_of = lines.line_index()
-    i = np.flatnonzero(finite)
-    if i.size == 0:
-        return np.zeros(0, np.uint32)
-    # a run breaks where the index jumps (a non-finite point) or the line changes
-    brk = np.flatnonzero((np.diff(i) != 1) | (np.diff(line_of[i]) != 0)) + 1
-    starts, stops = np.r_[0, brk], np.r_[brk, i.size]
-    keep = stops - starts >= 2
-    runs = [i[a:b] for a, b in zip(starts[keep], stops[keep])]
-    if not runs:
-        return np.zeros(0, np.uint32)
-    if 2 * lines.n_points + 1 >= RESTART:
-        raise ValueError(f"{lines.n_points} points: too many to draw in one call")
-    parts = []
-    for r in runs:
-        parts.append(np.stack([2 * r, 2 * r + 1], axis=1).ravel())
-        parts.append(np.array([RESTART], np.int64))
-    return np.concatenate(parts).astype(np.uint32)
 
 
 def point_texture_shape(n: int) -> tuple[int, int]:
@@ -79,28 +69,33 @@ def _as_style(style) -> Style:
     raise TypeError(f"style must be a Style or a path to a TOML style file, got {type(style).__name__}")
 
 
-RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
-
-
 class LineRenderer:
     """Draws one set of lines with any number of styles, cameras and sizes."""
 
-    def __init__(self, lines: Lines, ctx: moderngl.Context | None = None):
+    def __init__(self, lines: Lines, ctx: moderngl.Context | None = None,
+                 tolerance: float = TOLERANCE):
+        """``tolerance``: per frame, skip the vertices whose removal moves the drawn line by less
+        than this many output pixels and its attributes by less than a visible step (see
+        ``simplify``); 0 draws every vertex."""
+        if not (math.isfinite(tolerance) and tolerance >= 0):
+            raise ValueError(f"tolerance = {tolerance!r}: expected a number of pixels >= 0")
         self.ctx = ctx or default_context()
         self.lines = lines
+        self.tolerance = float(tolerance)
         self.bounds = lines.bounds()
-        idx = strip_indices(lines)
-        self.n_indices = idx.size
-        if len(lines) >= 2**24:  # line numbers travel as float32 in the point texture
-            raise ValueError(f"{len(lines)} lines: at most {2**24} can be drawn at once")
-        w, h = point_texture_shape(lines.n_points)
-        pts = np.zeros((w * h, 4), np.float32)
-        pts[:lines.n_points, :3] = lines.points
-        pts[:lines.n_points, 3] = lines.line_index()
+        self._starts, self._stops = runs(lines)
+        if 2 * lines.n_points + len(self._starts) + 6 >= 2**31:
+            raise ValueError(f"{lines.n_points} points: too many to draw in one call")
+        self._xyz = np.ascontiguousarray(lines.points, np.float64)
+        self._importance: dict[str | None, np.ndarray] = {}  # None: geometry
+        self._arc: np.ndarray | None = None
+        self._frame_key = None
         # moderngl does not switch contexts per call: make ours current around all GL work
         with self.ctx:
-            self._points = self._texture(pts, 4)
-            self._ibo = self.ctx.buffer(idx.tobytes()) if idx.size else None
+            self._points = self._texture(np.asarray(lines.points, np.float32), 3)
+            self._ids = self.ctx.buffer(reserve=4)  # per frame: kept point ids (simplify.select)
+            self._ibo = self.ctx.buffer(reserve=4)  # per frame: strip indices with restarts
+        self.n_indices = 0
         self._attrs: dict[str, moderngl.Texture] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._fbos: dict[tuple, tuple] = {}
@@ -109,7 +104,8 @@ class LineRenderer:
     @_current
     def release(self) -> None:
         """Free this renderer's buffers and framebuffers (programs stay cached on the context)."""
-        for obj in [*self._vaos.values(), *self._attrs.values(), self._points, self._ibo]:
+        for obj in [*self._vaos.values(), *self._attrs.values(), self._points, self._ids,
+                    self._ibo]:
             if obj is not None:
                 obj.release()
         for ms, out in self._fbos.values():
@@ -147,15 +143,7 @@ class LineRenderer:
     def _attribute_texture(self, name: str) -> moderngl.Texture:
         buf = self._attrs.get(name)
         if buf is None:
-            lines = self.lines
-            if name in lines.point_data:
-                v = np.asarray(lines.point_data[name])
-            elif name in lines.line_data:  # per-line values repeated on the line's vertices
-                v = np.repeat(np.asarray(lines.line_data[name]), lines.lengths)
-            else:
-                have = sorted(lines.point_data) + sorted(lines.line_data)
-                raise StyleError(f"the style reads attribute '{name}', which these lines do not "
-                                 f"have; available: {', '.join(have) or 'none'}")
+            v = self._attr_values(name)
             if v.ndim != 1:
                 raise StyleError(f"attribute '{name}' has shape {v.shape}; a style can only map "
                                  f"scalar (one value per vertex) attributes")
@@ -165,10 +153,71 @@ class LineRenderer:
 
     def _vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
         vao = self._vaos.get(prog.glo)
-        if vao is None:  # no vertex attributes: everything is fetched from textures
+        if vao is None:
+            # the only vertex attributes are point ids: a_prev/a_cur/a_next read the same buffer
+            # two entries apart (every id is stored twice, once per side of the strip)
             vao = self.ctx.vertex_array(prog, [], self._ibo, index_element_size=4)
+            for k, name in enumerate(("a_prev", "a_cur", "a_next")):
+                if name in prog:
+                    vao.bind(prog[name].location, "i", self._ids, "1i", offset=8 * k, stride=4)
             self._vaos[prog.glo] = vao
         return vao
+
+    # -- level of detail ------------------------------------------------------------------------
+    def _attr_values(self, name: str) -> np.ndarray:
+        lines = self.lines
+        if name in lines.point_data:
+            return np.asarray(lines.point_data[name])
+        if name in lines.line_data:  # per-line values repeated on the line's vertices
+            return np.repeat(np.asarray(lines.line_data[name]), lines.lengths)
+        have = sorted(lines.point_data) + sorted(lines.line_data)
+        raise StyleError(f"the style reads attribute '{name}', which these lines do not "
+                         f"have; available: {', '.join(have) or 'none'}")
+
+    def _importance_of(self, name: str | None) -> np.ndarray:
+        imp = self._importance.get(name)
+        if imp is None:
+            if name is None:
+                imp = geometry_importance(self._xyz, self._starts, self._stops)
+            else:
+                if self._arc is None:
+                    self._arc = arc_parameter(self._xyz, self._starts, self._stops)
+                v = np.asarray(self._attr_values(name), np.float64)
+                imp = attribute_importance(v, self._arc, self._starts, self._stops)
+            self._importance[name] = imp
+        return imp
+
+    def _select(self, style: Style, cam, size) -> None:
+        """Upload this frame's kept vertices (ids + strip indices), unless unchanged."""
+        tol = self.tolerance * style.supersample  # output pixels -> render pixels
+        ranges = {}
+        if style.transfer is not None:
+            v = self._attr_values(style.transfer.attribute)
+            fin = v[np.isfinite(v)]
+            ranges[style.transfer.attribute] = float(fin.max() - fin.min()) if fin.size else 0.0
+        # world size of the smallest pixel in the scene (for widths in world units)
+        corners = np.array(np.meshgrid(*self.bounds)).reshape(3, -1).T
+        z = corners @ cam.view[2, :3] + cam.view[2, 3]
+        px_min = max(float(np.min(cam.px_scale[0] * -z + cam.px_scale[1])), 1e-30)
+        unit = 1.0 if style.units == "pixels" else style.supersample * px_min  # per output px
+        tols = attribute_tolerances(style, self.tolerance, ranges, unit) if tol > 0 else {}
+        key = (cam.view.tobytes(), cam.proj.tobytes(), tuple(size), tol, tuple(sorted(tols.items())))
+        if key == self._frame_key:
+            return
+        extra = np.zeros(0, bool)
+        if tol > 0:
+            for name, t in tols.items():
+                keep = self._importance_of(name) > 0.5 * t
+                extra = keep if extra.size == 0 else extra | keep
+        imp = self._importance_of(None) if tol > 0 else np.zeros(0, np.float32)
+        ids, idx = select(self._xyz, imp, cam.view, cam.px_scale, tol, extra, self._starts,
+                          self._stops)
+        for buf, data in ((self._ids, ids), (self._ibo, idx)):
+            if buf.size < data.nbytes:
+                buf.orphan(data.nbytes)
+            buf.write(data)
+        self.n_indices = idx.size
+        self._frame_key = key
 
     # -- framebuffers ---------------------------------------------------------------------------
     def _targets(self, size: tuple[int, int], samples: int):
@@ -237,7 +286,10 @@ class LineRenderer:
             ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
         else:
             ctx.disable(moderngl.BLEND)
-        if self._ibo is not None:
+        if self._starts.size:
+            for a in attrs:  # upload (and check) the attributes before selecting with them
+                self._attribute_texture(a)
+            self._select(style, cam, size)
             half = style.scale * style.max_total_width
             pixels = style.units == "pixels"
             ss = style.supersample if pixels else 1  # pixel widths are output pixels
@@ -258,7 +310,6 @@ class LineRenderer:
                 tex.use(location=unit)
                 uniforms[name] = unit
             uniforms.update({k: v for k, v in values.items() if not is_texture(v)})
-            uniforms["u_npoints"] = self.lines.n_points
             for name, value in uniforms.items():
                 if name in prog:  # the compiler drops uniforms it can prove unused
                     u = prog[name]
@@ -266,7 +317,7 @@ class LineRenderer:
                         u.write(value)
                     else:
                         u.value = value
-            self._vao(prog).render(moderngl.TRIANGLE_STRIP)
+            self._vao(prog).render(moderngl.TRIANGLE_STRIP, vertices=self.n_indices)
         if ms is not None:
             ctx.copy_framebuffer(out, ms)
 

@@ -1,16 +1,19 @@
 #version {{ glsl_version }}
-// View-oriented strips without a geometry shader: each line is one triangle strip with two
-// vertices per point (gl_VertexID = 2 * point + side); the vertex fetches its point and the
-// neighbours from u_points (xyz + line number).  The side vector at a point depends only on the
-// point and its neighbours, so the strip is continuous at joins (mitred, limit 2).
-uniform sampler2D u_points;     // one texel per point: x, y, z, line number
+// View-oriented strips without a geometry shader: each run of a line is one triangle strip with
+// two vertices per kept point (side = gl_VertexID & 1).  The vertex gets the ids of its point and
+// of the previous/next kept points (-1: none) as attributes and fetches their positions from
+// u_points.  The side vector at a point depends only on the point and its neighbours, so the
+// strip is continuous at joins (mitred, limit 2).
+uniform sampler2D u_points;     // one texel per point: x, y, z
+in int a_prev;
+in int a_cur;
+in int a_next;
 {% for k in range(n_attrs) %}
 uniform sampler2D u_attr{{ k }};  // attribute slot {{ k }}, one texel per point
 out float g_attr{{ k }};
 {% endfor %}
 uniform mat4 u_view;
 uniform mat4 u_proj;
-uniform int u_npoints;
 uniform float u_half;       // strip half-width, style units (scale x widest style's total width)
 uniform float u_pixels;     // 1: style units are pixels, 0: world units
 uniform vec2 u_px;          // world size of one pixel at view depth z: u_px.x * (-z) + u_px.y
@@ -25,20 +28,15 @@ vec3 safe_dir(vec3 v, vec3 fallback) {
     return n > 1e-12 ? v / n : fallback;
 }
 
-// view-space position of neighbour j of a point on line `line`, or `p` if there is none
-vec3 neighbour(int j, float line, vec3 p) {
-    if (j < 0 || j >= u_npoints) return p;
-    vec4 q = texelFetch(u_points, texel(j), 0);
-    if (q.w != line || any(isnan(q.xyz)) || any(isinf(q.xyz))) return p;
-    return (u_view * vec4(q.xyz, 1.0)).xyz;
+// view-space position of point j, or `p` if there is none
+vec3 neighbour(int j, vec3 p) {
+    return j < 0 ? p : (u_view * vec4(texelFetch(u_points, texel(j), 0).xyz, 1.0)).xyz;
 }
 
 void main() {
-    int i = gl_VertexID >> 1;
     float sgn = (gl_VertexID & 1) == 0 ? 1.0 : -1.0;
-    vec4 q = texelFetch(u_points, texel(i), 0);
-    vec3 p = (u_view * vec4(q.xyz, 1.0)).xyz;
-    vec3 a = neighbour(i - 1, q.w, p), c = neighbour(i + 1, q.w, p);
+    vec3 p = (u_view * vec4(texelFetch(u_points, texel(a_cur), 0).xyz, 1.0)).xyz;
+    vec3 a = neighbour(a_prev, p), c = neighbour(a_next, p);
     vec3 e = normalize(mix(vec3(0.0, 0.0, 1.0), -p, u_persp));   // towards the viewer
     vec3 t_in = safe_dir(p - a, vec3(0.0)), t_out = safe_dir(c - p, vec3(0.0));
     vec3 t_seg = dot(t_in, t_in) > 0.0 ? t_in : safe_dir(t_out, vec3(1.0, 0.0, 0.0));
@@ -52,6 +50,6 @@ void main() {
     g_b = sgn * u_half;
     g_z = v.z;
 {% for k in range(n_attrs) %}
-    g_attr{{ k }} = texelFetch(u_attr{{ k }}, texel(i), 0).r;
+    g_attr{{ k }} = texelFetch(u_attr{{ k }}, texel(a_cur), 0).r;
 {% endfor %}
 }

@@ -1,0 +1,202 @@
+"""Per-frame level of detail: draw only the vertices that change the picture.
+
+Streamlines are traced with many more vertices than a frame can show (the benchmark scene has
+0.7-pixel segments at 1920x1080), and on a software rasterizer every tiny triangle costs a full
+setup.  Once per renderer, every vertex gets a Douglas-Peucker importance: the distance (world
+units) from the vertex to the chord that replaces it when the DP recursion picks it, capped by its
+parent's importance so that importance only falls down the hierarchy; ``importance > tol`` then
+selects exactly the vertices DP keeps at tolerance ``tol``.  Attributes get their own importance:
+the deviation from linear interpolation along the arc length (what the rasterizer does between
+two kept vertices).  Per frame a vertex is kept when its geometric importance exceeds half the
+pixel tolerance (converted to world units at the vertex's depth) or an attribute's importance
+exceeds half that attribute's tolerance; the ends of every run are always kept.  Halves because
+the kept set is the union of several DP sets, which at most doubles each one's error.
+
+Runs are the pieces of a line with consecutive finite points (>= 2 of them); the renderer draws
+one triangle strip per run.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ..lines import Lines
+from .style import ColorMap, Style, WidthMap
+
+RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
+
+
+def runs(lines: Lines) -> tuple[np.ndarray, np.ndarray]:
+    """(starts, stops) int64 of the runs of >= 2 consecutive finite points of each line."""
+    finite = np.all(np.isfinite(lines.points), axis=1)
+    line_of = lines.line_index()
+    i = np.flatnonzero(finite)
+    if i.size == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    # a run breaks where the index jumps (a non-finite point) or the line changes
+    brk = np.flatnonzero((np.diff(i) != 1) | (np.diff(line_of[i]) != 0)) + 1
+    first, last = np.r_[0, brk], np.r_[brk, i.size] - 1
+    keep = last > first
+    return i[first[keep]].astype(np.int64), i[last[keep]].astype(np.int64) + 1
+
+
+def arc_parameter(points: np.ndarray, starts: np.ndarray, stops: np.ndarray) -> np.ndarray:
+    """Cumulative chord length from each run's start (0 outside runs)."""
+    return _arc(np.ascontiguousarray(points, np.float64), starts, stops)
+
+
+def geometry_importance(points, starts, stops) -> np.ndarray:
+    """float32 DP importance (world units) of every point; inf at run ends, 0 outside runs."""
+    p = np.ascontiguousarray(points, np.float64)
+    return _importance(p, np.zeros(0), np.zeros(0), starts, stops, True)
+
+
+def attribute_importance(values, arc, starts, stops) -> np.ndarray:
+    """float32 DP importance (attribute units) of a scalar attribute along the arc parameter;
+    inf where a value is not finite."""
+    v = np.ascontiguousarray(values, np.float64)
+    return _importance(np.zeros((0, 3)), v, arc, starts, stops, False)
+
+
+@numba.njit(cache=True)
+def _arc(p, starts, stops):
+    s = np.zeros(p.shape[0])
+    for r in range(starts.size):
+        for i in range(starts[r] + 1, stops[r]):
+            d = p[i] - p[i - 1]
+            s[i] = s[i - 1] + math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    return s
+
+
+@numba.njit(cache=True)
+def _deviation(p, v, s, i, j, m, geometric):
+    if geometric:  # distance from point m to the segment i-j
+        dx, dy, dz = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1], p[j, 2] - p[i, 2]
+        mx, my, mz = p[m, 0] - p[i, 0], p[m, 1] - p[i, 1], p[m, 2] - p[i, 2]
+        dd = dx * dx + dy * dy + dz * dz
+        t = 0.0 if dd == 0.0 else min(max((mx * dx + my * dy + mz * dz) / dd, 0.0), 1.0)
+        ex, ey, ez = mx - t * dx, my - t * dy, mz - t * dz
+        return math.sqrt(ex * ex + ey * ey + ez * ez)
+    # attribute: deviation from linear interpolation along the arc between i and j
+    t = (s[m] - s[i]) / (s[j] - s[i]) if s[j] > s[i] else (m - i) / (j - i)
+    return abs(v[m] - v[i] - t * (v[j] - v[i]))
+
+
+@numba.njit(cache=True)
+def _importance(p, v, s, starts, stops, geometric):
+    n = p.shape[0] if geometric else v.shape[0]
+    imp = np.zeros(n, np.float32)
+    si = np.empty(n, np.int64)
+    sj = np.empty(n, np.int64)
+    sc = np.empty(n)
+    for r in range(starts.size):
+        a, b = starts[r], stops[r] - 1
+        imp[a] = np.inf
+        imp[b] = np.inf
+        si[0], sj[0], sc[0] = a, b, np.inf
+        top = 1
+        while top > 0:
+            top -= 1
+            i, j, cap = si[top], sj[top], sc[top]
+            if j - i < 2:
+                continue
+            best, k = -1.0, i + 1
+            for m in range(i + 1, j):
+                d = _deviation(p, v, s, i, j, m, geometric)
+                if not d <= 1e300:  # NaN or inf (non-finite attribute): always keep
+                    d = np.inf
+                if d > best:
+                    best, k = d, m
+            e = min(best, cap)
+            imp[k] = e
+            si[top], sj[top], sc[top] = i, k, e
+            si[top + 1], sj[top + 1], sc[top + 1] = k, j, e
+            top += 2
+    return imp
+
+
+@numba.njit(cache=True)
+def _select(points, imp, zrow, px, tol, extra, starts, stops):
+    """Kept point ids as the strip buffer and the element indices.
+
+    ids: the kept points of each run with -1 between runs (and at both ends), every entry twice,
+    so strip vertex e = 2k + side reads prev/cur/next at ids[e], ids[e + 2], ids[e + 4].
+    """
+    n_runs = starts.size
+    total = 0
+    for r in range(n_runs):
+        total += stops[r] - starts[r]
+    k_ids = np.empty(total + n_runs + 1, np.int32)
+    idx = np.empty(2 * total + n_runs, np.uint32)
+    k_ids[0] = -1
+    nk, ni = 1, 0
+    half = 0.5 * tol
+    for r in range(n_runs):
+        a, b = starts[r], stops[r]
+        for i in range(a, b):
+            keep = tol <= 0.0 or i == a or i == b - 1
+            if not keep and extra.size:
+                keep = extra[i]
+            if not keep:
+                z = zrow[0] * points[i, 0] + zrow[1] * points[i, 1] + zrow[2] * points[i, 2] + zrow[3]
+                keep = imp[i] > half * (px[0] * (-z) + px[1])
+            if keep:
+                k_ids[nk] = i
+                idx[ni] = 2 * (nk - 1)
+                idx[ni + 1] = 2 * (nk - 1) + 1
+                nk += 1
+                ni += 2
+        k_ids[nk] = -1
+        nk += 1
+        idx[ni] = RESTART
+        ni += 1
+    ids = np.empty(2 * nk + 4, np.int32)
+    for k in range(nk):
+        ids[2 * k] = k_ids[k]
+        ids[2 * k + 1] = k_ids[k]
+    ids[2 * nk:] = -1
+    return ids, idx[:ni]
+
+
+def select(points, imp, view, px, tol, extra, starts, stops) -> tuple[np.ndarray, np.ndarray]:
+    """(ids int32, indices uint32) of the strips to draw this frame (see ``_select``).
+    ``extra``: bool per point, kept whatever its geometry (attributes), or an empty array."""
+    zrow = np.ascontiguousarray(view[2], np.float64)
+    return _select(points, imp, zrow, np.asarray(px, np.float64), float(tol), extra, starts, stops)
+
+
+def attribute_tolerances(style: Style, tol_px: float, ranges: dict[str, float],
+                         unit: float = 1.0) -> dict[str, float]:
+    """Per attribute the error the picture tolerates, for a pixel tolerance ``tol_px``: half a
+    colormap step per 0.25 px, widths off by ``tol_px`` pixels (``unit``: style width units per
+    pixel), shapes/patterns shifted by a 1/512 period per 0.25 px, transfer switches by 1/1024 of
+    the data range per 0.25 px.  ``ranges``: each attribute's data range (max - min).
+    Attributes with no known use get 0 (every vertex where they are not linear is kept)."""
+    f = tol_px / 0.25
+    tol = {name: 0.0 for name in style.attributes()}
+    need: dict[str, float] = {}
+
+    def add(name, t):
+        need[name] = min(need.get(name, math.inf), abs(t))
+
+    for n in style.used_styles():
+        for b in style.styles[n].bands:
+            colors = [b.color] + ([b.pattern.color] if b.pattern is not None else [])
+            for c in colors:
+                if isinstance(c, ColorMap):
+                    add(c.attribute, (c.range[1] - c.range[0]) * f / 512)
+            if isinstance(b.width, WidthMap):
+                w = b.width
+                dw = abs(w.max - w.min) * style.scale
+                add(w.attribute, (w.range[1] - w.range[0]) * tol_px * unit / dw if dw > 0 else math.inf)
+            for sp in (b.shape, b.pattern):
+                if sp is not None:
+                    add(sp.attribute, sp.length * f / 512)
+    if style.transfer is not None:
+        a = style.transfer.attribute
+        add(a, ranges.get(a, 0.0) * f / 1024)
+    tol.update({k: v for k, v in need.items() if k in tol})
+    return tol

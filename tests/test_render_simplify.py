@@ -1,0 +1,163 @@
+"""Per-frame level of detail (flowkit.render.simplify): Douglas-Peucker importance, the kept
+vertices stay within the pixel tolerance, attributes keep the vertices their mapping needs, and
+pictures drawn with and without it agree."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from render_scenes import FACE_ON, helices, style
+
+from flowkit.lines import Lines
+from flowkit.render import Band, Camera, ColorMap, LineRenderer
+from flowkit.render.simplify import (
+    arc_parameter,
+    attribute_importance,
+    attribute_tolerances,
+    geometry_importance,
+    runs,
+    select,
+)
+
+BLACK, WHITE = (0, 0, 0, 1), (1, 1, 1, 1)
+
+
+def _kept(ids):
+    """Kept point ids per run from the doubled id buffer."""
+    k = ids[::2]
+    out, cur = [], []
+    for v in k[1:]:
+        if v < 0:
+            if cur:
+                out.append(cur)
+            cur = []
+        else:
+            cur.append(int(v))
+    return out
+
+
+def test_runs_split_at_non_finite_points_and_lines():
+    pts = np.zeros((9, 3))
+    pts[:, 0] = np.arange(9)
+    pts[3] = np.nan
+    lines = Lines(pts, [0, 6, 7, 9])  # line 0 = 0,1,2 | nan | 4,5 ; line 1 = 6 (alone); line 2
+    starts, stops = runs(lines)
+    assert starts.tolist() == [0, 4, 7] and stops.tolist() == [3, 6, 9]
+
+
+def test_importance_is_the_douglas_peucker_distance_capped_by_the_parent():
+    # a tent: the apex is 2 from the base chord, one flank point off its chord, one on it
+    x = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    y = np.array([0.0, 0.6, 2.0, 1.0, 0.0])
+    pts = np.c_[x, y, np.zeros(5)]
+    s, e = np.array([0]), np.array([5])
+    imp = geometry_importance(pts, s, e)
+    assert np.isinf(imp[0]) and np.isinf(imp[4])
+    assert imp[2] == pytest.approx(2.0)  # apex: distance to the base chord
+    # left flank point: distance to chord (0,0)-(2,2) is |0.6 - 1| / sqrt(2)
+    assert imp[1] == pytest.approx(abs(y[1] - 1.0) / np.sqrt(2), rel=1e-6)
+    assert imp[3] == pytest.approx(0.0, abs=1e-7)  # on the chord (2,2)-(4,0)
+    # a child farther from its chord (2.76) than its parent (2) is capped at the parent's value:
+    # a tolerance that drops the parent drops the child too
+    pts2 = np.array([[0, 0, 0], [2, -1.9, 0], [2, 2, 0], [3, 1, 0], [4, 0, 0.0]])
+    imp2 = geometry_importance(pts2, s, e)
+    assert imp2[2] == pytest.approx(2.0) and imp2[1] == pytest.approx(2.0)
+
+
+def test_kept_vertices_stay_within_the_pixel_tolerance_of_every_dropped_one():
+    # a dense circle (radius 100 world units, orthographic 1 unit per pixel): DP must keep a
+    # polygon whose chords are within tol pixels of every original vertex
+    n = 5000
+    t = np.linspace(0, 2 * np.pi, n)
+    pts = np.c_[100 * np.cos(t), 100 * np.sin(t), np.zeros(n)]
+    s, e = np.array([0]), np.array([n])
+    imp = geometry_importance(pts, s, e)
+    view = np.eye(4)
+    for tol in (0.1, 0.5, 2.0):
+        ids, idx = select(pts, imp, view, (0.0, 1.0), tol, np.zeros(0, bool), s, e)
+        kept = np.array(_kept(ids)[0])
+        assert kept[0] == 0 and kept[-1] == n - 1
+        # chord sagitta for a 100-px radius: a polygon of m sides deviates 100 (1 - cos(pi/m))
+        assert len(kept) < n / 10
+        for a, b in itertools.pairwise(kept):
+            d = pts[b] - pts[a]
+            m = pts[a + 1:b] - pts[a]
+            dist = np.abs(m[:, 0] * d[1] - m[:, 1] * d[0]) / np.hypot(*d[:2])
+            assert dist.size == 0 or dist.max() <= tol
+        # the strip indices are the doubled kept positions and one restart
+        assert idx.size == 2 * len(kept) + 1 and idx[-1] == 0xFFFFFFFF
+    ids0, _ = select(pts, imp, view, (0.0, 1.0), 0.0, np.zeros(0, bool), s, e)
+    assert _kept(ids0)[0] == list(range(n))  # tolerance 0: every vertex
+
+
+def test_perspective_keeps_more_vertices_near_the_eye():
+    # two identical dense wavy lines, one near the eye and one 10x farther
+    n = 2000
+    t = np.linspace(0, 1, n)
+    wave = np.c_[t - 0.5, 0.01 * np.sin(40 * t), np.zeros(n)]
+    near, far = wave + [0, 0, -1.0], wave + [0, 0, -10.0]
+    pts = np.r_[near, far]
+    s, e = np.array([0, n]), np.array([n, 2 * n])
+    imp = geometry_importance(pts, s, e)
+    ids, _ = select(pts, imp, np.eye(4), (1e-3, 0.0), 0.5, np.zeros(0, bool), s, e)
+    k_near, k_far = map(len, _kept(ids))
+    assert k_near > k_far * 2.5  # the far copy is 10x smaller on screen
+
+
+def test_attribute_keeps_the_vertices_its_colormap_needs():
+    n = 1000
+    x = np.linspace(0, 1, n)
+    pts = np.c_[x, np.zeros(n), np.zeros(n)]  # straight: geometry keeps only the ends
+    lines = Lines(pts, [0, n], {"lin": x.copy(), "sq": x**2})
+    s, e = runs(lines)
+    arc = arc_parameter(pts, s, e)
+    assert arc[-1] == pytest.approx(1.0)
+    imp_lin = attribute_importance(lines.point_data["lin"], arc, s, e)
+    imp_sq = attribute_importance(lines.point_data["sq"], arc, s, e)
+    assert np.nanmax(np.where(np.isinf(imp_lin), 0, imp_lin)) < 1e-9  # linear: nothing needed
+    st = style(Band(ColorMap("viridis", "sq", (0.0, 1.0)), 2.0))
+    tol = attribute_tolerances(st, 0.25, {})
+    assert tol == {"sq": pytest.approx(1 / 512)}
+    keep = imp_sq > 0.5 * tol["sq"]
+    ids, _ = select(pts, geometry_importance(pts, s, e), np.eye(4), (0.0, 1.0), 0.25, keep, s, e)
+    kept = np.array(_kept(ids)[0])
+    # piecewise-linear interpolation of x^2 through the kept vertices is within the tolerance
+    err = np.abs(np.interp(x, x[kept], x[kept] ** 2) - x**2).max()
+    assert err <= tol["sq"] and 5 < len(kept) < n / 4
+
+
+def test_tolerance_argument_is_checked():
+    with pytest.raises(ValueError, match="tolerance = -1"):
+        LineRenderer(helices(1, 10), tolerance=-1)
+
+
+@pytest.mark.parametrize("cam", [Camera(), Camera(azimuth=20, elevation=40,
+                                                  projection="orthographic")])
+def test_pictures_with_and_without_level_of_detail_agree(cam):
+    lines = helices(12, 3000)  # ~0.1-pixel segments at this size
+    s = style(Band(ColorMap("viridis", "speed", (0, 1)), 2.0),
+              Band(BLACK, 1.5, depth_offset=0.15), background=WHITE, antialias="none")
+    with LineRenderer(lines, tolerance=0.0) as full, LineRenderer(lines) as lod:
+        a = full.render(s, (320, 240), cam)
+        b = lod.render(s, (320, 240), cam)
+        assert lod.n_indices < full.n_indices / 8
+    diff = np.abs(a.astype(int) - b.astype(int)).max(axis=2)
+    ink = np.mean(np.any(a[..., :3] != 255, axis=2))
+    assert ink > 0.2
+    # 0.25-px moves flip a few edge pixels (measured 0.2-0.4 %); colours agree to a few levels
+    assert np.mean(diff > 8) < 0.01, np.mean(diff > 8)
+    assert diff.mean() < 1.0, diff.mean()
+
+
+def test_frames_reselect_only_when_the_view_changes():
+    lines = helices(3, 500)
+    s = style(Band(BLACK, 2.0), background=WHITE, antialias="none")
+    with LineRenderer(lines) as r:
+        r.render(s, (100, 80), FACE_ON)
+        key, n = r._frame_key, r.n_indices
+        r.render(s, (100, 80), FACE_ON)
+        assert r._frame_key is key
+        r.render(s, (400, 320), FACE_ON)  # 4x larger: more detail
+        assert r._frame_key is not key and r.n_indices > n
