@@ -150,11 +150,8 @@ def _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef):
 
 
 @njit(cache=True, inline="always")
-def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row):
-    """Right-hand side at p into k[row, 0:4]; returns the speed |v| (NaN for a NaN cell)."""
-    if not aware and not (ci[0] >= 0 and cf[0] <= px <= cf[3] and cf[1] <= py <= cf[4]
-            and cf[2] <= pz <= cf[5]):
-        _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+def _fc(px, py, pz, param, cf, coef, k, row):
+    """Right-hand side from the current cell's polynomial into k[row, 0:4]; returns |v|."""
     tx = (px - cf[0]) * cf[6]
     ty = (py - cf[1]) * cf[7]
     tz = (pz - cf[2]) * cf[8]
@@ -177,6 +174,16 @@ def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 
         k[row, 2] = w * r
         k[row, 3] = r
     return sp
+
+
+@njit(cache=True, inline="always")
+def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row):
+    """Right-hand side at p: cell-aware, the current cell's polynomial; otherwise the polynomial
+    of the cell holding p (looked up when p left the cached cell).  NaN for a NaN cell."""
+    if not aware and not (ci[0] >= 0 and cf[0] <= px <= cf[3] and cf[1] <= py <= cf[4]
+                          and cf[2] <= pz <= cf[5]):
+        _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+    return _fc(px, py, pz, param, cf, coef, k, row)
 
 
 @njit(cache=True)
@@ -203,6 +210,16 @@ def _move(a, up, c, per, vec, ci, cf, coef):
     ci[a] = i
     cf[6 + a] = 1.0 / wdt
     return 0 if _gather(vec, ci, coef) else 2
+
+
+@njit(cache=True, inline="always")
+def _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef):
+    # no array variable chosen at run time: that would cost reference counting in the loop
+    if a == 0:
+        return _move(0, up, gx, period[0], vec, ci, cf, coef)
+    if a == 1:
+        return _move(1, up, gy, period[1], vec, ci, cf, coef)
+    return _move(2, up, gz, period[2], vec, ci, cf, coef)
 
 
 # -- dense output -----------------------------------------------------------------------------
@@ -345,14 +362,15 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
     ci = np.full(3, -1, np.int64)
     y = np.empty(4)
     yt = np.empty(3)
+    dlo = np.array([gx[0], gy[0], gz[0]])  # domain bounds
+    dhi = np.array([gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]])
 
     if si[l, I_STATUS] == NEW:
         px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
         inside = math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)
         for a in range(3):
-            c = gx if a == 0 else (gy if a == 1 else gz)
             x = seeds[l, a]
-            if period[a] == 0.0 and not (c[0] <= x <= c[c.size - 1]):
+            if period[a] == 0.0 and not (dlo[a] <= x <= dhi[a]):
                 inside = False
         sp = np.nan
         if inside:
@@ -443,13 +461,12 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
         # where the line stands: on a face moving outwards -> next cell, or out of the domain
         stop = False
         for a in range(3):
-            c = gx if a == 0 else (gy if a == 1 else gz)
             mv = d * k[0, a]
             if aware:
                 up = y[a] >= cf[3 + a] and mv > 0.0
                 if up or (y[a] <= cf[a] and mv < 0.0):
                     y[a] = cf[3 + a] if up else cf[a]
-                    res = _move(a, up, c, period[a], vec, ci, cf, coef)
+                    res = _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef)
                     if res != 0:
                         reason = R_OUT if res == 1 else R_NAN
                         stop = True
@@ -458,7 +475,7 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
                 else:  # rounding may leave the point a hair outside its cell: put it back
                     y[a] = min(max(y[a], cf[a]), cf[3 + a])
             elif period[a] == 0.0 and (
-                    (y[a] <= c[0] and mv < 0.0) or (y[a] >= c[c.size - 1] and mv > 0.0)):
+                    (y[a] <= dlo[a] and mv < 0.0) or (y[a] >= dhi[a] and mv > 0.0)):
                 reason = R_OUT
                 stop = True
                 break
@@ -491,7 +508,10 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
                 for m in range(st):
                     acc += ma[st, m] * k[m, a]
                 yt[a] = y[a] + hs * acc
-            _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+            if aware:
+                _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
+            else:
+                _f(yt[0], yt[1], yt[2], param, False, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
         y1x = y[0]
         y1y = y[1]
         y1z = y[2]
@@ -590,11 +610,10 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
         need_face = False
         for a in range(3):
             v1 = y1x if a == 0 else (y1y if a == 1 else y1z)
-            c = gx if a == 0 else (gy if a == 1 else gz)
             if aware:
                 if v1 < cf[a] or v1 > cf[3 + a]:
                     need_face = True
-            elif period[a] == 0.0 and (v1 < c[0] or v1 > c[c.size - 1]):
+            elif period[a] == 0.0 and (v1 < dlo[a] or v1 > dhi[a]):
                 need_face = True
         need_dep = abs(dep1) >= lim_dep
         if need_face or need_dep or emit == EMIT_SPACING:
@@ -615,11 +634,10 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
         if need_face:
             for a in range(3):
                 v1 = y1x if a == 0 else (y1y if a == 1 else y1z)
-                c = gx if a == 0 else (gy if a == 1 else gz)
                 if aware:
                     lo_a, hi_a = cf[a], cf[3 + a]
                 elif period[a] == 0.0:
-                    lo_a, hi_a = c[0], c[c.size - 1]
+                    lo_a, hi_a = dlo[a], dhi[a]
                 else:
                     continue
                 if v1 < lo_a:
@@ -668,8 +686,8 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
             hit_lim = False
             if ev == EV_FACE:
                 # through the face (whatever the velocity there says); start afresh in the new cell
-                c = gx if ev_axis == 0 else (gy if ev_axis == 1 else gz)
-                res = _move(ev_axis, ev_face == cf[3 + ev_axis], c, period[ev_axis], vec, ci, cf, coef)
+                res = _move_axis(ev_axis, ev_face == cf[3 + ev_axis], gx, gy, gz, period, vec, ci, cf,
+                                 coef)
                 if res == 1:
                     ev = EV_BOUNDARY
                 elif res == 2:

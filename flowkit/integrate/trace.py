@@ -21,7 +21,8 @@ from . import kernel as K
 from .options import TraceOptions
 from .reasons import REASON_NAMES
 
-BUFFER_BYTES = 128 << 20  # output buffer of one pass: (tasks, budget) vertices of 40 bytes
+BUFFER_BYTES = 32 << 20  # output buffer of one pass: (tasks, budget) vertices of 40 bytes
+MAX_BUDGET = 1024  # vertices per line per pass (longer lines continue in the next pass)
 BATCH_SEEDS = 16384
 CELL_CAP = 1.25  # cell-aware steps: at most this times the straight-line time to the exit face
 PROGRESS_MIN_SEEDS = 20000
@@ -43,12 +44,14 @@ def trace(field: Field, seeds, options: TraceOptions | None = None, *, backend="
 
 
 def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None, *,
-                  batch_seeds: int = BATCH_SEEDS, position_dtype="float32", backend="numba", **kw):
+                  batch_seeds: int = 4096, position_dtype="float32", backend="numba", **kw):
     """Trace and stream each batch of ``batch_seeds`` seeds to the HDF5 file ``path``.
 
-    Peak memory ~ one batch: the output buffer (BUFFER_BYTES, 128 MiB) plus that batch's lines
-    and attributes, whatever the number of seeds.  The file appears atomically when complete.
-    Returns the path.
+    Peak memory is bounded by one batch, whatever the number of seeds: the pass buffer
+    (40 bytes x max(16, min(1024, 32 MiB / (40 x tasks))) vertices per task, at most ~32 MiB
+    unless a batch has over 52k tasks) plus the batch's vertices, held about twice while they are
+    ordered, at 40 bytes each plus 8 bytes per attribute component: ~100 MB for 4096 seeds of
+    250 vertices.  The file appears atomically when complete.  Returns the path.
     """
     from ..io.lines_h5 import LinesWriter
 
@@ -172,13 +175,15 @@ class _Setup:
         si = np.zeros((n, K.NI), np.int64)
         active = np.arange(n, dtype=np.int64)
         chunks_p, chunks_par, chunks_owner = [], [], []
+        B = budget or int(min(MAX_BUDGET, max(16, BUFFER_BYTES // (40 * n))))
+        if emit == K.EMIT_FINAL:
+            B = 2
+        # one allocation, reused by every pass (later passes have fewer lines)
+        buf_p = np.empty((n, B, 3))
+        buf_par = np.empty((n, B, 2))
+        buf_n = np.zeros(n, np.int64)
         while active.size:
-            B = budget or int(min(4096, max(16, BUFFER_BYTES // (40 * active.size))))
-            if emit == K.EMIT_FINAL:
-                B = 2
-            out_p = np.empty((active.size, B, 3))
-            out_par = np.empty((active.size, B, 2))
-            out_n = np.zeros(active.size, np.int64)
+            out_p, out_par, out_n = buf_p[:active.size], buf_par[:active.size], buf_n[:active.size]
             self.advance(active, seeds, dirs, spacing, phase, *self.grid, self.vec,
                       *self.method.kernel_arrays(), self.fo, io, sf, si, out_p, out_par, out_n)
             keep = np.arange(B)[None, :] < out_n[:, None]
