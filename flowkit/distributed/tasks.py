@@ -4,7 +4,8 @@ A task carries names, not arrays: the path (and snapshot number) of the field fi
 of its chunk (a small array, or a slice of a ``.npy`` file that the worker memory-maps), the
 options, and the path of its part file.  The worker opens the field itself and keeps the last
 one it opened (``_FIELD_CACHE``, per worker process), so consecutive tasks on one snapshot read
-it once.  The part is written under a temporary name and renamed when complete, so it either
+it once.  The part (``write_part``: a flat HDF5 file, cheaper to write and read than the full lines
+layout) is written under a temporary name and renamed when complete, so it either
 exists whole or not at all; a task whose part exists returns at once.  Tasks are deterministic,
 so a task run twice (a retry, a worker lost after writing) writes the same bytes to the same
 name: no line is lost or duplicated.
@@ -22,7 +23,8 @@ import numpy as np
 
 from ..fields import Field
 from ..integrate.options import TraceOptions
-from ..io.lines_h5 import write_lines
+from ..io.atomic import atomic_path
+from ..lines import Lines
 
 _FIELD_CACHE: dict = {}  # (path, snapshot, vector, mtime) -> Field: the last field opened
 
@@ -70,7 +72,7 @@ def run_task(task: Task) -> dict:
     part = Path(task.part)
     if part.exists():  # complete by construction (atomic rename): done before, by someone
         with h5py.File(part, "r") as f:
-            n_lines = int(f["rowSize"].shape[0])
+            n_lines = int(f["offsets"].shape[0]) - 1
         return {"key": task.key, "lines": n_lines, "seeds": task.n_seeds, "cached": True,
                 "snapshot": task.snapshot, "seconds": time.perf_counter() - t0}
     import numba
@@ -87,9 +89,31 @@ def run_task(task: Task) -> dict:
         lines = trace(open_field(task.source, task.vector), seeds, task.options)
     lines.line_data["seed_id"] = lines.line_data["seed_id"] + task.first
     t1 = time.perf_counter()
-    write_lines(lines, part, position_dtype=task.position_dtype, compression=None)
+    write_part(lines, part)
     return {"key": task.key, "lines": len(lines), "seeds": task.n_seeds, "cached": False,
             "snapshot": task.snapshot, "trace_s": t1 - t0, "seconds": time.perf_counter() - t0}
+
+
+def write_part(lines: Lines, path) -> None:
+    """Lines as flat datasets (positions float64, so the join rounds them once, as a single
+    process does) and run metadata as root attributes, written atomically."""
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        f["points"] = lines.points
+        f["offsets"] = lines.offsets
+        for group, data in (("point", lines.point_data), ("line", lines.line_data)):
+            g = f.create_group(group, track_order=True)
+            for k, v in data.items():
+                g[k] = v
+        for k, v in lines.attrs.items():
+            f.attrs[k] = v
+
+
+def read_part(path) -> Lines:
+    with h5py.File(path, "r") as f:
+        attrs = {k: v.item() if isinstance(v, np.generic) else v for k, v in f.attrs.items()}
+        return Lines(f["points"][...], f["offsets"][...],
+                     {k: d[...] for k, d in f["point"].items()},
+                     {k: d[...] for k, d in f["line"].items()}, attrs)
 
 
 def open_field(source, vector) -> Field:
