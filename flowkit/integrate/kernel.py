@@ -99,7 +99,7 @@ def _locate_cell(c, period, inv, x):
     return i, c[i], c[i + 1]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _gather(vec, ci, coef):
     """Coefficients of the trilinear polynomial of cell ci; False when a corner is not finite."""
     nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
@@ -186,7 +186,7 @@ def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 
     return _fc(px, py, pz, param, cf, coef, k, row)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _move(a, up, c, per, vec, ci, cf, coef):
     """Step the current cell through its face on axis a; 0 ok, 1 left the domain, 2 NaN cell."""
     if up:
@@ -224,26 +224,24 @@ def _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef):
 
 # -- dense output -----------------------------------------------------------------------------
 @njit(cache=True, inline="always")
-def _dense(sf, l, comp, q, y0, hs, th):
-    """y0 + hs * Σ_j Q[comp, j] θ^(j+1) from the coefficients stored in sf[l]."""
-    base = S_Q + comp * QMAX
+def _dense(qd, comp, q, y0, hs, th):
+    """y0 + hs * Σ_j Q[comp, j] θ^(j+1), Q the step's dense coefficients (4, QMAX)."""
     acc = 0.0
     for j in range(q - 1, -1, -1):
-        acc = acc * th + sf[l, base + j]
+        acc = acc * th + qd[comp, j]
     return y0 + hs * (th * acc)
 
 
-@njit(cache=True)
-def _root(sf, l, comp, q, y0, hs, target, sgn, thi):
+@njit(cache=True, inline="always")
+def _root(qd, comp, q, y0, hs, target, sgn, thi):
     """θ in [0, thi] where the dense output of ``comp`` meets ``target``, going from
     sgn * (value - target) < 0 to >= 0: safeguarded Newton from the secant estimate."""
-    base = S_Q + comp * QMAX
     a = 0.0
     ga = sgn * (y0 - target)
     if ga > 0.0:
         return 0.0
     b = thi
-    gb = sgn * (_dense(sf, l, comp, q, y0, hs, b) - target)
+    gb = sgn * (_dense(qd, comp, q, y0, hs, b) - target)
     if gb < 0.0:
         return thi  # only rounding keeps the dense end short of the event
     # from the secant estimate; on the face itself (ga == 0) look for the crossing after θ = 0
@@ -253,7 +251,7 @@ def _root(sf, l, comp, q, y0, hs, target, sgn, thi):
         dr = 0.0
         for j in range(q - 1, -1, -1):
             dr = dr * th + r
-            r = r * th + sf[l, base + j]
+            r = r * th + qd[comp, j]
         g = sgn * (y0 + hs * (th * r) - target)
         if g == 0.0 and th > 0.0:
             return th
@@ -295,6 +293,7 @@ def _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, 
         tau0 = sf[l, S_TAU0]
         dep0 = sf[l, S_Y0 + 3]
         s_end = sf[l, S_DEP] if param == 0 else sf[l, S_TAU]
+        qd = sf[l, S_Q:S_Q + 4 * QMAX].reshape((4, QMAX))  # the step's dense coefficients
         while True:
             m = si[l, I_M]
             target = phase + m * spacing
@@ -309,11 +308,11 @@ def _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, 
                 if param == 1:
                     th = (d * target - tau0) / hs
                 else:
-                    th = _root(sf, l, 3, q, dep0, hs, d * target, d, th_end)
-                px = _dense(sf, l, 0, q, sf[l, S_Y0], hs, th)
-                py = _dense(sf, l, 1, q, sf[l, S_Y0 + 1], hs, th)
-                pz = _dense(sf, l, 2, q, sf[l, S_Y0 + 2], hs, th)
-                t = tau0 + th * hs if param == 0 else _dense(sf, l, 3, q, dep0, hs, th)
+                    th = _root(qd, 3, q, dep0, hs, d * target, d, th_end)
+                px = _dense(qd, 0, q, sf[l, S_Y0], hs, th)
+                py = _dense(qd, 1, q, sf[l, S_Y0 + 1], hs, th)
+                pz = _dense(qd, 2, q, sf[l, S_Y0 + 2], hs, th)
+                t = tau0 + th * hs if param == 0 else _dense(qd, 3, q, dep0, hs, th)
             _put(out_p, out_par, out_n, slot, px, py, pz, t, d * target)
             sf[l, S_LAST_S] = d * target
             si[l, I_M] = m + 1
@@ -362,6 +361,7 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
     ci = np.full(3, -1, np.int64)
     y = np.empty(4)
     yt = np.empty(3)
+    qd = np.empty((4, QMAX))
     dlo = np.array([gx[0], gy[0], gz[0]])  # domain bounds
     dhi = np.array([gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]])
 
@@ -629,7 +629,11 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
                     acc = 0.0
                     for m in range(S):
                         acc += mp[m, j] * k[m, a]
-                    sf[l, S_Q + a * QMAX + j] = acc
+                    qd[a, j] = acc
+            if emit == EMIT_SPACING:  # kept with the line: emission may continue next launch
+                for a in range(4):
+                    for j in range(q):
+                        sf[l, S_Q + a * QMAX + j] = qd[a, j]
         th = 1.0
         if need_face:
             for a in range(3):
@@ -641,10 +645,10 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
                 else:
                     continue
                 if v1 < lo_a:
-                    tha = _root(sf, l, a, q, y[a], hs, lo_a, -1.0, 1.0)
+                    tha = _root(qd, a, q, y[a], hs, lo_a, -1.0, 1.0)
                     face = lo_a
                 elif v1 > hi_a:
-                    tha = _root(sf, l, a, q, y[a], hs, hi_a, 1.0, 1.0)
+                    tha = _root(qd, a, q, y[a], hs, hi_a, 1.0, 1.0)
                     face = hi_a
                 else:
                     continue
@@ -654,7 +658,7 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
                     ev_face = face
                     ev = EV_FACE
         if need_dep:
-            thd = _root(sf, l, 3, q, y[3], hs, d * lim_dep, d, 1.0)
+            thd = _root(qd, 3, q, y[3], hs, d * lim_dep, d, 1.0)
             if ev == EV_NONE or thd < th:
                 th = thd
                 ev = EV_DEPLIM
@@ -675,10 +679,10 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
             for a in range(4):
                 k[0, a] = k[fs, a]
         else:
-            ynew0 = _dense(sf, l, 0, q, y[0], hs, th)
-            ynew1 = _dense(sf, l, 1, q, y[1], hs, th)
-            ynew2 = _dense(sf, l, 2, q, y[2], hs, th)
-            ydep = d * lim_dep if ev == EV_DEPLIM else _dense(sf, l, 3, q, y[3], hs, th)
+            ynew0 = _dense(qd, 0, q, y[0], hs, th)
+            ynew1 = _dense(qd, 1, q, y[1], hs, th)
+            ynew2 = _dense(qd, 2, q, y[2], hs, th)
+            ydep = d * lim_dep if ev == EV_DEPLIM else _dense(qd, 3, q, y[3], hs, th)
             y[0], y[1], y[2], y[3] = ynew0, ynew1, ynew2, ydep
             if ev == EV_FACE or ev == EV_BOUNDARY:
                 y[ev_axis] = ev_face
