@@ -75,6 +75,22 @@ WIDTH_ONLY = """\
     width = { attribute = "vorticity_magnitude", range = [0, 2], min = 1, max = 3 }
     """
 
+# a transfer function on T (which no band displays) picks 'cold' or 'warm'; 'warm' colours by
+# speed; 'unused' reads p but no range picks it, so p is not traced
+TRANSFER = """\
+    [styles.tf.transfer]
+    attribute = "T"
+    ranges = [{ range = [-inf, 299.5], style = "cold" }, { range = [299.5, inf], style = "warm" }]
+    [[styles.tf.styles.cold.bands]]
+    color = "#2040a0"
+    width = 2
+    [[styles.tf.styles.warm.bands]]
+    color = { cmap = "magma", attribute = "speed", range = [0, 1.2] }
+    width = 2
+    [[styles.tf.styles.unused.bands]]
+    color = { cmap = "gray", attribute = "p", range = [-1, 1] }
+    """
+
 
 @pytest.fixture
 def field_file(tmp_path):
@@ -132,6 +148,7 @@ SCENES = {
     "line_data": (("[styles.why]\n[[styles.why.bands]]\n"
                    'color = { cmap = "viridis", attribute = "reason", range = [0, 8] }\n'), "", "",
                   (), 0, []),
+    "transfer": (TRANSFER, "", "", ("T", "speed"), 0, ["T"]),
     # [trace] attributes adds to what the styles read, for the lines file
     "extra": (SPEED, "", 'attributes = ["p"]', ("speed", "p"), 0, ["p"]),
 }
@@ -247,6 +264,15 @@ def test_explain_says_what_is_computed_and_why(tmp_path, field_file, capsys, spy
     capsys.readouterr()
     assert main(["scene", str(path), "--explain"]) == 0
     assert "  snapshot 0: hit: lines and attributes cached, no tracing" in capsys.readouterr().out
+    # a transfer function: its attribute, then the bands of the line styles it picks
+    tf = write_scene(tmp_path, SPEED + TRANSFER, f'[views.side]\nstyle = "fast"\nsize = {SIZE}\n'
+                     f'[views.top]\nstyle = "tf"\nsize = {SIZE}\n', name="tf.toml")
+    assert main(["scene", str(tf), "--explain"]) == 0
+    out = capsys.readouterr().out
+    assert "attributes traced: speed, T\n" in out
+    assert "    read by view 'top': style 'tf' transfer function" in out
+    assert "    read by view 'top': style 'tf' line style 'warm' band 1 colour (magma)" in out
+    assert "'p'" not in out and "unused" not in out
 
 
 # -- bad scene files ----------------------------------------------------------------------------

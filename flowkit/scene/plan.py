@@ -2,9 +2,9 @@
 of ``flowkit scene --explain``.
 
 The attribute set comes from the renderer's own answer, ``Style.attributes()``, for every style a
-view draws (a style no view draws costs nothing).  Bands are walked only to say *which* band reads
-an attribute; a name the style reads elsewhere (e.g. a transfer function) is still traced, and
-explained as read by the style itself.
+view draws (a style no view draws costs nothing; neither does a line style its transfer function
+never picks).  The style model is walked only to say *which* part reads an attribute; a name
+``attributes()`` reports that the walk does not find is still traced, "read by the style".
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from ..fields.readers import SnapshotRef, load_field, load_series
 from ..integrate.attributes import ATTRIBUTES
 from ..integrate.options import TraceOptions
 from ..integrate.seeds import parse_seed_spec
-from ..render.style import ColorMap, WidthMap
+from ..render.style import ColorMap
 from .model import Scene, SceneError, snapshot_selection
 
 # per-line data every traced line carries anyway: a style may read it at no tracing cost
@@ -88,17 +88,25 @@ def make_plan(scene: Scene, snapshot=None, extra_attributes=()) -> Plan:
 
 
 def style_reads(style) -> list[tuple[str, str]]:
-    """(attribute, which part of the style reads it) for every attribute ``style`` reads."""
+    """(attribute, which part of the style reads it) for every attribute ``style`` reads: its
+    transfer function, and the bands (colour, width, shape, pattern) of the line styles drawn."""
     out = []
-    for lname, ls in style.styles.items():
+    if style.transfer is not None:
+        out.append((style.transfer.attribute, "transfer function"))
+    for lname in style.used_styles():
         prefix = f"line style '{lname}' " if len(style.styles) > 1 else ""
-        for i, b in enumerate(ls.bands):
-            if isinstance(b.color, ColorMap):
-                out.append((b.color.attribute, f"{prefix}band {i + 1} colour ({b.color.cmap})"))
-            if isinstance(b.width, WidthMap):
-                out.append((b.width.attribute, f"{prefix}band {i + 1} width"))
+        for i, b in enumerate(style.styles[lname].bands):
+            parts = [("colour", b.color), ("width", b.width), ("shape", b.shape),
+                     ("pattern", b.pattern)]
+            if b.pattern is not None:
+                parts.append(("pattern colour", b.pattern.color))
+            for role, spec in parts:
+                a = getattr(spec, "attribute", None)
+                if a is not None:
+                    cm = f" ({spec.cmap})" if isinstance(spec, ColorMap) else ""
+                    out.append((a, f"{prefix}band {i + 1} {role}{cm}"))
     named = {a for a, _ in out}
-    out += [(a, "(read by the style, not by a band)") for a in style.attributes() if a not in named]
+    out += [(a, "(read by the style)") for a in style.attributes() if a not in named]
     return out
 
 
