@@ -168,6 +168,10 @@ def test_attributes_traced_are_exactly_those_the_styles_read(tmp_path, field_fil
     assert spy["curl"] == curls
     assert sorted(set(spy["scalar"])) == sorted(scalars)
     assert len(res.snapshots[0].images) == len(scene.views)
+    # the GPU gets what the drawn styles read: not [trace] attributes, but per-line data they map
+    drawn = {a for v in scene.views.values() for a in scene.styles[v.style].attributes()}
+    assert set(res.snapshots[0].uploaded) == drawn
+    assert drawn == set(want) - {"p"} | ({"reason"} if name == "line_data" else set())
 
 
 def test_vector_attribute_in_a_style_is_refused(tmp_path, field_file):

@@ -34,6 +34,7 @@ class SnapshotResult:
     n_points: int = 0
     lines_path: Path | None = None
     images: dict[str, Path] = field(default_factory=dict)
+    uploaded: tuple[str, ...] = ()    # attributes the renderer put on the GPU
     seconds: dict[str, float] = field(default_factory=dict)
 
 
@@ -262,3 +263,4 @@ def _render(plan: Plan, lines: Lines, res: SnapshotResult, out: Path, fmt: dict,
                 path = _out(out, scene.outputs.images.format(view=v.name, style=v.style, **fmt))
                 res.images[v.name] = save_png(img, path)
                 st.msg = f"{path} ({v.size[0]}x{v.size[1]})"
+        res.uploaded = tuple(r.uploaded_attributes())
