@@ -1,11 +1,16 @@
 """Frame time of the two-band halo style vs VTK's plain wide lines, same lines, same run.
 
-2500 lines x 1000 vertices (2.5M vertices) at 1920x1080.  flowkit: headless EGL, geometry
-uploaded once, each frame drawn, resolved and read back to host memory (the read-back waits
-for the GPU, so the time is honest).  VTK: vtkPolyData lines, LineWidth 4, offscreen render
-window (EGL in the VTK wheel), each frame rendered and read back the same way.
+2500 lines x 1000 vertices (2.5M vertices) at 1920x1080, seen from the same camera by both.
+flowkit: headless EGL, geometry uploaded once; every frame turns the camera by 0.1 degree (so the
+per-frame level-of-detail selection runs every frame), draws, resolves and reads back to host
+memory (the read-back waits for the rasterizer, so the time is honest).  VTK: vtkPolyData lines,
+LineWidth 4, offscreen render window, no MSAA, the same camera turns, rendered and read back
+the same way.  Each figure is the best of ``--frames`` frames after 2 warm-up frames (best, not
+mean: the machine is shared), wall time and process CPU time (all threads); ratios compare
+figures taken in this run.
 
     .venv/bin/python benchmarks/bench_render.py [--lines 2500 --vertices 1000 --frames 5]
+    [--only default,msaa,none,full,vtk]
 """
 
 from __future__ import annotations
@@ -18,6 +23,8 @@ import numpy as np
 
 from flowkit.lines import Lines
 from flowkit.render import Band, Camera, LineRenderer, LineStyle, Style
+
+BACKGROUND = (0.8, 0.8, 0.8, 1.0)
 
 
 def scene(n_lines: int, n_vertices: int, seed: int = 0) -> Lines:
@@ -39,32 +46,42 @@ def halo_style(antialias: str) -> Style:
     # 2 x (1.5 + 1) = 5 px wide: a black core with a white depth-dependent halo
     return Style(styles={"default": LineStyle((Band((0, 0, 0, 1), 1.5),
                                                Band((1, 1, 1, 1), 1.0, depth_offset=0.02)))},
-                 background=(0.8, 0.8, 0.8, 1.0), antialias=antialias)
+                 background=BACKGROUND, antialias=antialias)
 
 
-def time_flowkit(lines: Lines, size, frames: int, antialias: str) -> float:
-    r = LineRenderer(lines)
+def camera(frame: int) -> Camera:
+    return Camera(azimuth=-60.0 + 0.1 * frame)
+
+
+def best_of(frames: int, draw) -> tuple[float, float, np.ndarray]:
+    """(best wall s, best CPU s, last image) over ``frames`` frames after 2 warm-up frames."""
+    wall, cpu, img = [], [], None
+    for k in range(frames + 2):
+        t0, c0 = time.perf_counter(), time.process_time()
+        img = draw(k)
+        if k >= 2:
+            wall.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
+    return min(wall), min(cpu), img
+
+
+def time_flowkit(lines: Lines, size, frames: int, antialias: str, **renderer_args):
     style = halo_style(antialias)
-    cam = Camera()
-    for _ in range(2):  # warm-up: compile, first upload of framebuffers
-        r.draw(style, size, cam)
-        r.read()
-    t0 = time.perf_counter()
-    for _ in range(frames):
-        r.draw(style, size, cam)
-        r.read()
-    dt = (time.perf_counter() - t0) / frames
-    r.release()
-    return dt
+    with LineRenderer(lines, **renderer_args) as r:
+        def draw(k):
+            r.draw(style, size, camera(k))
+            return r.read()
+        wall, cpu, img = best_of(frames, draw)
+        info = {"samples": r.samples_for(style), "kept": r.n_drawn}
+    return wall, cpu, img, info
 
 
 def time_vtk(lines: Lines, size, frames: int):
     import vtk
-    from vtk.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+    from vtk.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray, vtk_to_numpy
 
     pts = vtk.vtkPoints()
     pts.SetData(numpy_to_vtk(np.ascontiguousarray(lines.points, np.float32), deep=True))
-    n = lines.lengths
     conn = np.arange(lines.n_points, dtype=np.int64)
     cells = vtk.vtkCellArray()
     cells.SetData(numpy_to_vtkIdTypeArray(lines.offsets.astype(np.int64), deep=True),
@@ -72,7 +89,7 @@ def time_vtk(lines: Lines, size, frames: int):
     poly = vtk.vtkPolyData()
     poly.SetPoints(pts)
     poly.SetLines(cells)
-    assert poly.GetNumberOfCells() == len(n)
+    assert poly.GetNumberOfCells() == len(lines)
     mapper = vtk.vtkPolyDataMapper()
     mapper.SetInputData(poly)
     actor = vtk.vtkActor()
@@ -80,28 +97,37 @@ def time_vtk(lines: Lines, size, frames: int):
     actor.GetProperty().SetLineWidth(4)
     actor.GetProperty().SetColor(0, 0, 0)
     ren = vtk.vtkRenderer()
-    ren.SetBackground(0.8, 0.8, 0.8)
+    ren.SetBackground(*BACKGROUND[:3])
     ren.AddActor(actor)
     rw = vtk.vtkRenderWindow()
     rw.SetOffScreenRendering(1)
     rw.SetMultiSamples(0)
     rw.AddRenderer(ren)
     rw.SetSize(*size)
-    ren.ResetCamera()
-    ren.GetActiveCamera().Azimuth(30)
     buf = vtk.vtkUnsignedCharArray()
+    bounds = lines.bounds()
+    vcam = ren.GetActiveCamera()
 
-    def frame():
+    def draw(k):
+        c = camera(k)  # the same eye, target, up and field of view as flowkit's
+        setup = c.setup(bounds, *size)
+        vcam.SetPosition(*setup.eye)
+        vcam.SetFocalPoint(*bounds.mean(axis=1))
+        vcam.SetViewUp(*c.up)
+        vcam.SetViewAngle(c.fov)
+        ren.ResetCameraClippingRange()
         rw.Render()
         rw.GetRGBACharPixelData(0, 0, size[0] - 1, size[1] - 1, 0, buf)  # waits for the GPU
+        return vtk_to_numpy(buf).reshape(size[1], size[0], 4)
 
-    for _ in range(2):
-        frame()
-    t0 = time.perf_counter()
-    for _ in range(frames):
-        frame()
-    dt = (time.perf_counter() - t0) / frames
-    return dt, type(rw).__name__, rw.ReportCapabilities().splitlines()[:3]
+    wall, cpu, img = best_of(frames, draw)
+    return wall, cpu, img, type(rw).__name__, rw.ReportCapabilities().splitlines()[:3]
+
+
+def ink(img: np.ndarray) -> float:
+    """Fraction of pixels that are not background."""
+    bg = np.rint(np.array(BACKGROUND[:3]) * 255)
+    return float(np.mean(np.any(np.abs(img[..., :3].astype(int) - bg) > 2, axis=2)))
 
 
 def main() -> None:
@@ -110,30 +136,48 @@ def main() -> None:
     ap.add_argument("--vertices", type=int, default=1000)
     ap.add_argument("--frames", type=int, default=5)
     ap.add_argument("--size", default="1920x1080")
+    ap.add_argument("--only", default="default,msaa,none,full,vtk",
+                    help="comma-separated runs: default, msaa, none, full, vtk")
     a = ap.parse_args()
+    runs = a.only.split(",")
     size = tuple(int(v) for v in a.size.split("x"))
     lines = scene(a.lines, a.vertices)
     from flowkit.render import default_context
 
     info = default_context().info
     print(f"{a.lines} lines x {a.vertices} vertices = {lines.n_points:,} vertices at "
-          f"{size[0]}x{size[1]}; {a.frames} frames after 2 warm-up frames")
+          f"{size[0]}x{size[1]}; best of {a.frames} frames after 2 warm-up frames")
     print(f"flowkit GL: {info['GL_RENDERER']} / {info['GL_VERSION']}; "
           f"load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} cpus")
-    fk_msaa = time_flowkit(lines, size, a.frames, "msaa")
-    print(f"flowkit halo style, 4x MSAA + band smoothing : {fk_msaa * 1e3:8.1f} ms/frame")
-    fk_none = time_flowkit(lines, size, a.frames, "none")
-    print(f"flowkit halo style, no antialiasing          : {fk_none * 1e3:8.1f} ms/frame")
-    try:
-        vt, rw_name, caps = time_vtk(lines, size, a.frames)
-    except ImportError:
-        print("vtk not installed (pip install '.[bench]'): no comparison")
-        return
-    print(f"VTK plain lines, LineWidth 4, no MSAA ({rw_name}): {vt * 1e3:8.1f} ms/frame "
-          f"[{'; '.join(c.strip() for c in caps)}]")
-    print(f"ratio flowkit(MSAA halo) / VTK(plain wide lines): {fk_msaa / vt:.2f}  "
-          f"(< 1 means flowkit is faster)")
-    print(f"ratio flowkit(no-AA halo) / VTK(plain wide lines): {fk_none / vt:.2f}")
+    rows = {}
+    variants = {
+        "default": ("flowkit halo, defaults (antialias='msaa' style)", "msaa", {}),
+        "msaa": ("flowkit halo, 4x MSAA forced", "msaa", {"msaa": True}),
+        "none": ("flowkit halo, no antialiasing", "none", {}),
+        "full": ("flowkit halo, defaults, every vertex (tolerance 0)", "msaa", {"tolerance": 0.0}),
+    }
+    for key, (label, aa, kw) in variants.items():
+        if key not in runs:
+            continue
+        wall, cpu, img, fi = time_flowkit(lines, size, a.frames, aa, **kw)
+        aa_name = f"{fi['samples']}x MSAA" if fi["samples"] > 1 else (
+            "analytic edges" if aa != "none" else "none")
+        label = f"{label} [{aa_name}; {fi['kept']:,} vertices drawn]"
+        rows[key] = (label, wall, cpu, ink(img))
+    if "vtk" in runs:
+        try:
+            wall, cpu, img, rw_name, caps = time_vtk(lines, size, a.frames)
+            caps = "; ".join(c.strip() for c in caps)
+            rows["vtk"] = (f"VTK plain lines, LineWidth 4, no MSAA ({rw_name}) [{caps}]",
+                           wall, cpu, ink(img))
+        except ImportError:
+            print("vtk not installed (pip install '.[bench]'): no comparison")
+    print(f"{'':4}{'ms/frame wall':>14}{'ms CPU':>9}{'ink':>7}{'/VTK wall':>10}{'/VTK CPU':>9}")
+    vtk_row = rows.get("vtk")
+    for key, (label, wall, cpu, cover) in rows.items():
+        ratio = (f"{wall / vtk_row[1]:10.2f}{cpu / vtk_row[2]:9.2f}" if vtk_row else "")
+        print(f"{key:8}{wall * 1e3:10.1f}{cpu * 1e3:9.1f}{cover:7.1%}{ratio}  {label}")
+    print("ratios < 1: flowkit faster than VTK; ink: fraction of non-background pixels")
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

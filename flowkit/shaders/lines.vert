@@ -15,6 +15,7 @@ out float g_attr{{ k }};
 uniform mat4 u_view;
 uniform mat4 u_proj;
 uniform float u_half;       // strip half-width, style units (scale x widest style's total width)
+uniform float u_pad;        // extra half-width in pixels: room for analytic edge smoothing
 uniform float u_pixels;     // 1: style units are pixels, 0: world units
 uniform vec2 u_px;          // world size of one pixel at view depth z: u_px.x * (-z) + u_px.y
 uniform float u_persp;      // 1 perspective (view rays through the eye), 0 orthographic
@@ -44,10 +45,12 @@ void main() {
     vec3 s_seg = safe_dir(cross(t_seg, e), vec3(1.0, 0.0, 0.0));
     vec3 s = safe_dir(cross(t, e), s_seg);
     s /= max(abs(dot(s, s_seg)), 0.5);  // mitre: the same for both segments (s bisects them)
-    float half_world = u_half * mix(1.0, u_px.x * (-p.z) + u_px.y, u_pixels);
+    float px = u_px.x * (-p.z) + u_px.y;   // world size of a pixel at this depth
+    float unit = mix(1.0, px, u_pixels);    // world size of one style unit
+    float half_world = u_half * unit + u_pad * px;
     vec3 v = p + sgn * half_world * s;
     gl_Position = u_proj * vec4(v, 1.0);
-    g_b = sgn * u_half;
+    g_b = sgn * half_world / unit;
     g_z = v.z;
 {% for k in range(n_attrs) %}
     g_attr{{ k }} = texelFetch(u_attr{{ k }}, texel(a_cur), 0).r;
