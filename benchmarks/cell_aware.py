@@ -27,12 +27,14 @@ def main():
     ap.add_argument("--nodes", type=int, default=128)
     ap.add_argument("--methods", default="dopri5")
     ap.add_argument("--rtols", default="1e-4,1e-6,1e-8,1e-10")
+    ap.add_argument("--parameter", default="time", choices=["time", "arc_length"])
+    ap.add_argument("--vtk", default="", help="VTK RK4 steps to run on the same work, e.g. 0.05,0.01")
     args = ap.parse_args()
     prob = Problem(nodes_per_period=args.nodes, n_seeds=args.seeds)
     field = abc_field(prob)
     seeds = make_seeds(prob)
     L = prob.length
-    common = {"max_length": L, "atol": 1e-12}
+    common = {"max_length": L, "atol": 1e-12, "parameter": args.parameter}
     ref = trace(field, seeds, method="dop853", rtol=1e-13, cell_aware=True, **common)
     ref_end = ref.points[ref.offsets[1:] - 1]
     assert np.all(ref.line_data["reason"] == 1), "reference lines must all reach max_length"
@@ -57,6 +59,15 @@ def main():
                 print(f"| {m} | {rtol:.0e} | {'on' if aware else 'off'} | {acc:.0f} | {rej:.0f} | "
                       f"{np.median(err):.2e} | {np.percentile(err, 90):.2e} | {wall:.3f} | "
                       f"{sps:.3g} |")
+    if args.vtk:
+        import peers
+
+        tracer = peers.VTKTracer(field)
+        for step in (float(x) for x in args.vtk.split(",")):
+            run = tracer.run(seeds, L, integrator="RK4", step=step)
+            err = np.linalg.norm(run.end_points - ref_end, axis=1)
+            print(f"| vtk RK4 step {step:g} | - | - | {L / step:.0f} | 0 | {np.median(err):.2e} | "
+                  f"{np.percentile(err, 90):.2e} | {run.wall:.3f} | {tracer.threads()} |")
 
 
 if __name__ == "__main__":
