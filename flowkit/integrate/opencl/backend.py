@@ -70,8 +70,9 @@ class OpenCLAdvance:
         mf = cl.mem_flags
         bufs = [cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                           hostbuf=np.ascontiguousarray(c, self.dtype)) for c in (gx, gy, gz)]
-        bufs.append(cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                              hostbuf=np.ascontiguousarray(vec, self.dtype)))
+        # with an image the field lives only there (the buffer argument gets a placeholder)
+        data = np.zeros(1, self.dtype) if self.image else np.ascontiguousarray(vec, self.dtype)
+        bufs.append(cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=data))
         if self.image:
             bufs.append(field_image(self.ctx, vec, period))
         self._field = ((gx, gy, gz, vec), bufs)
