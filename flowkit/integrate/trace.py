@@ -195,10 +195,13 @@ class _Setup:
             if on_pass is not None:
                 on_pass(int(active.size - busy.sum()))
             active = active[busy]
+        if len(chunks_owner) == 1:  # one pass: already grouped by line, in order
+            par = chunks_par[0]
+            return chunks_p[0], par[:, 0].copy(), par[:, 1].copy(), chunks_owner[0], si
         owner = np.concatenate(chunks_owner)
         order = np.argsort(owner, kind="stable")
         par = np.concatenate(chunks_par)[order]
-        return np.concatenate(chunks_p)[order], par[:, 0], par[:, 1], owner[order], si
+        return np.concatenate(chunks_p)[order], par[:, 0].copy(), par[:, 1].copy(), owner[order], si
 
 
 def _backend(backend):
@@ -283,11 +286,10 @@ def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> L
         line_of = line[idx]
         ld.update(reason=reason[1::2], n_accepted=nacc[0::2] + nacc[1::2],
                   n_rejected=nrej[0::2] + nrej[1::2], reason_backward=reason[0::2])
+        pts, t, s = pts[idx], t[idx], s[idx]
     else:
-        idx = np.arange(owner.size)
         line_of = owner
         ld.update(reason=reason, n_accepted=nacc, n_rejected=nrej)
-    pts, t, s = pts[idx], t[idx], s[idx]
     offsets = np.concatenate([[0], np.cumsum(np.bincount(line_of, minlength=n))])
     seed_of = seeds[line_of]
     pd = _attributes.compute(field, opts.attributes, pts, t, s, seed_of) if opts.attributes else {}
