@@ -26,6 +26,7 @@ def test_llvmpipe_is_software_and_gets_analytic_edges_by_default():
     assert s.antialias == "msaa"
     lines = straight((-1, 0, 0), (1, 0, 0))
     with LineRenderer(lines) as auto, LineRenderer(lines, msaa=True) as forced:
+        assert auto.tolerance == 0.25 and not auto.msaa  # software defaults (GPU: 0, MSAA)
         with ctx:  # prepare() compiles: it needs the context current
             assert auto.samples_for(s) == 1 and auto.prepare(s)[0].smooth_edge
             assert forced.samples_for(s) == 4 and not forced.prepare(s)[0].smooth_edge

@@ -161,3 +161,8 @@ def test_frames_reselect_only_when_the_view_changes():
         assert r._frame_key is key
         r.render(s, (400, 320), FACE_ON)  # 4x larger: more detail
         assert r._frame_key is not key and r.n_indices > n
+    with LineRenderer(lines, tolerance=0) as r:  # every vertex: nothing depends on the camera
+        r.render(s, (100, 80), FACE_ON)
+        key, n = r._frame_key, r.n_indices
+        r.render(s, (400, 320), Camera(azimuth=10))
+        assert r._frame_key is key and r.n_indices == n == 3 * (2 * 500 + 1)

@@ -43,7 +43,7 @@ from .simplify import (
 )
 from .style import Style, StyleError, load_style
 
-TOLERANCE = 0.25  # default level-of-detail tolerance, output pixels (0: draw every vertex)
+TOLERANCE = 0.25  # level-of-detail tolerance on software rasterizers, output pixels
 
 
 def _current(method):
@@ -73,16 +73,21 @@ class LineRenderer:
     """Draws one set of lines with any number of styles, cameras and sizes."""
 
     def __init__(self, lines: Lines, ctx: moderngl.Context | None = None,
-                 tolerance: float = TOLERANCE, msaa: bool | None = None):
+                 tolerance: float | None = None, msaa: bool | None = None):
         """``tolerance``: per frame, skip the vertices whose removal moves the drawn line by less
         than this many output pixels and its attributes by less than a visible step (see
-        ``simplify``); 0 draws every vertex.  ``msaa``: whether a style's ``antialias = "msaa"``
-        gets a multisampled target; None (default): yes on a GPU, no on a software rasterizer
-        (llvmpipe), which then smooths edges analytically at a fraction of MSAA's cost."""
+        ``simplify``); 0 draws every vertex (nothing is recomputed when the camera moves).
+        ``msaa``: whether a style's ``antialias = "msaa"`` gets a multisampled target.  None
+        (defaults) choose by rasterizer: on a software one (llvmpipe), where every tiny triangle
+        costs a setup and MSAA's clear+resolve costs more than a frame, tolerance 0.25 and
+        analytic edge smoothing; on a GPU, every vertex and MSAA."""
+        software = is_software(ctx or default_context())
+        if tolerance is None:
+            tolerance = TOLERANCE if software else 0.0
         if not (math.isfinite(tolerance) and tolerance >= 0):
             raise ValueError(f"tolerance = {tolerance!r}: expected a number of pixels >= 0")
         self.ctx = ctx or default_context()
-        self.msaa = (not is_software(self.ctx)) if msaa is None else bool(msaa)
+        self.msaa = (not software) if msaa is None else bool(msaa)
         self.lines = lines
         self.tolerance = float(tolerance)
         self.bounds = lines.bounds()
@@ -93,6 +98,7 @@ class LineRenderer:
         self._importance: dict[str | None, np.ndarray] = {}  # None: geometry
         self._arc: np.ndarray | None = None
         self._frame_key = None
+        self._ranges: dict[str, float] = {}
         # moderngl does not switch contexts per call: make ours current around all GL work
         with self.ctx:
             self._points = self._texture(np.asarray(lines.points, np.float32), 3)
@@ -190,28 +196,37 @@ class LineRenderer:
             self._importance[name] = imp
         return imp
 
+    def _data_range(self, name: str) -> float:
+        r = self._ranges.get(name)
+        if r is None:
+            v = self._attr_values(name)
+            fin = v[np.isfinite(v)]
+            r = self._ranges[name] = float(fin.max() - fin.min()) if fin.size else 0.0
+        return r
+
     def _select(self, style: Style, cam, size) -> None:
         """Upload this frame's kept vertices (ids + strip indices), unless unchanged."""
         tol = self.tolerance * style.supersample  # output pixels -> render pixels
-        ranges = {}
-        if style.transfer is not None:
-            v = self._attr_values(style.transfer.attribute)
-            fin = v[np.isfinite(v)]
-            ranges[style.transfer.attribute] = float(fin.max() - fin.min()) if fin.size else 0.0
-        # world size of the smallest pixel in the scene (for widths in world units)
-        corners = np.array(np.meshgrid(*self.bounds)).reshape(3, -1).T
-        z = corners @ cam.view[2, :3] + cam.view[2, 3]
-        px_min = max(float(np.min(cam.px_scale[0] * -z + cam.px_scale[1])), 1e-30)
-        unit = 1.0 if style.units == "pixels" else style.supersample * px_min  # per output px
-        tols = attribute_tolerances(style, self.tolerance, ranges, unit) if tol > 0 else {}
-        key = (cam.view.tobytes(), cam.proj.tobytes(), tuple(size), tol, tuple(sorted(tols.items())))
+        if tol <= 0:  # every vertex: the same for every camera
+            key, tols = ("every vertex",), {}
+        else:
+            ranges = {}
+            if style.transfer is not None:
+                ranges[style.transfer.attribute] = self._data_range(style.transfer.attribute)
+            # world size of the smallest pixel in the scene (for widths in world units)
+            corners = np.array(np.meshgrid(*self.bounds)).reshape(3, -1).T
+            z = corners @ cam.view[2, :3] + cam.view[2, 3]
+            px_min = max(float(np.min(cam.px_scale[0] * -z + cam.px_scale[1])), 1e-30)
+            unit = 1.0 if style.units == "pixels" else style.supersample * px_min  # per output px
+            tols = attribute_tolerances(style, self.tolerance, ranges, unit)
+            key = (cam.view.tobytes(), cam.proj.tobytes(), tuple(size), tol,
+                   tuple(sorted(tols.items())))
         if key == self._frame_key:
             return
         extra = np.zeros(0, bool)
-        if tol > 0:
-            for name, t in tols.items():
-                keep = self._importance_of(name) > 0.5 * t
-                extra = keep if extra.size == 0 else extra | keep
+        for name, t in tols.items():
+            keep = self._importance_of(name) > 0.5 * t
+            extra = keep if extra.size == 0 else extra | keep
         imp = self._importance_of(None) if tol > 0 else np.zeros(0, np.float32)
         ids, idx = select(self._xyz, imp, cam.view, cam.px_scale, tol, extra, self._starts,
                           self._stops)

@@ -85,17 +85,17 @@ def _deviation(p, v, s, i, j, m, geometric):
     return abs(v[m] - v[i] - t * (v[j] - v[i]))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def _importance(p, v, s, starts, stops, geometric):
     n = p.shape[0] if geometric else v.shape[0]
     imp = np.zeros(n, np.float32)
-    si = np.empty(n, np.int64)
-    sj = np.empty(n, np.int64)
-    sc = np.empty(n)
-    for r in range(starts.size):
+    for r in numba.prange(starts.size):  # runs are independent
         a, b = starts[r], stops[r] - 1
         imp[a] = np.inf
         imp[b] = np.inf
+        si = np.empty(b - a + 1, np.int64)  # stack of (first, last, parent importance)
+        sj = np.empty(b - a + 1, np.int64)
+        sc = np.empty(b - a + 1)
         si[0], sj[0], sc[0] = a, b, np.inf
         top = 1
         while top > 0:
