@@ -89,16 +89,16 @@ def run_task(task: Task) -> dict:
         lines = trace(open_field(task.source, task.vector), seeds, task.options)
     lines.line_data["seed_id"] = lines.line_data["seed_id"] + task.first
     t1 = time.perf_counter()
-    write_part(lines, part)
+    write_part(lines, part, task.position_dtype)
     return {"key": task.key, "lines": len(lines), "seeds": task.n_seeds, "cached": False,
             "snapshot": task.snapshot, "trace_s": t1 - t0, "seconds": time.perf_counter() - t0}
 
 
-def write_part(lines: Lines, path) -> None:
-    """Lines as flat datasets (positions float64, so the join rounds them once, as a single
-    process does) and run metadata as root attributes, written atomically."""
+def write_part(lines: Lines, path, position_dtype="float64") -> None:
+    """Lines as flat datasets, positions rounded to the output's dtype (once, as a single process
+    does), run metadata as root attributes; written atomically."""
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        f["points"] = lines.points
+        f["points"] = lines.points.astype(position_dtype, copy=False)
         f["offsets"] = lines.offsets
         for group, data in (("point", lines.point_data), ("line", lines.line_data)):
             g = f.create_group(group, track_order=True)
