@@ -13,6 +13,7 @@ from render_scenes import FACE_ON, helices, style
 from flowkit.lines import Lines
 from flowkit.render import Band, Camera, ColorMap, LineRenderer
 from flowkit.render.simplify import (
+    MAX_SPAN,
     arc_parameter,
     attribute_importance,
     attribute_tolerances,
@@ -68,7 +69,9 @@ def test_importance_is_the_douglas_peucker_distance_capped_by_the_parent():
 
 def test_kept_vertices_stay_within_the_pixel_tolerance_of_every_dropped_one():
     # a dense circle (radius 100 world units, orthographic 1 unit per pixel): DP must keep a
-    # polygon whose chords are within tol pixels of every original vertex
+    # polygon whose chords are within tol pixels of every original vertex; n > MAX_SPAN, so the
+    # first split is the forced middle one
+    assert MAX_SPAN < 5000
     n = 5000
     t = np.linspace(0, 2 * np.pi, n)
     pts = np.c_[100 * np.cos(t), 100 * np.sin(t), np.zeros(n)]
@@ -78,7 +81,7 @@ def test_kept_vertices_stay_within_the_pixel_tolerance_of_every_dropped_one():
     for tol in (0.1, 0.5, 2.0):
         ids, idx = select(pts, imp, view, (0.0, 1.0), tol, np.zeros(0, bool), s, e)
         kept = np.array(_kept(ids)[0])
-        assert kept[0] == 0 and kept[-1] == n - 1
+        assert kept[0] == 0 and kept[-1] == n - 1 and (n - 1) // 2 in kept
         # chord sagitta for a 100-px radius: a polygon of m sides deviates 100 (1 - cos(pi/m))
         assert len(kept) < n / 10
         for a, b in itertools.pairwise(kept):

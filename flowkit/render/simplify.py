@@ -27,6 +27,8 @@ from ..lines import Lines
 from .style import ColorMap, Style, WidthMap
 
 RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
+MAX_SPAN = 4096  # longer pieces are split at their middle (which shares its parent's importance)
+# unscanned, so the DP cost stays O(n log n + n * MAX_SPAN) whatever the curve
 
 
 def runs(lines: Lines) -> tuple[np.ndarray, np.ndarray]:
@@ -103,14 +105,17 @@ def _importance(p, v, s, starts, stops, geometric):
             i, j, cap = si[top], sj[top], sc[top]
             if j - i < 2:
                 continue
-            best, k = -1.0, i + 1
-            for m in range(i + 1, j):
-                d = _deviation(p, v, s, i, j, m, geometric)
-                if not d <= 1e300:  # NaN or inf (non-finite attribute): always keep
-                    d = np.inf
-                if d > best:
-                    best, k = d, m
-            e = min(best, cap)
+            if j - i > MAX_SPAN:
+                k, e = (i + j) // 2, cap
+            else:
+                best, k = -1.0, i + 1
+                for m in range(i + 1, j):
+                    d = _deviation(p, v, s, i, j, m, geometric)
+                    if not d <= 1e300:  # NaN or inf (non-finite attribute): always keep
+                        d = np.inf
+                    if d > best:
+                        best, k = d, m
+                e = min(best, cap)
             imp[k] = e
             si[top], sj[top], sc[top] = i, k, e
             si[top + 1], sj[top + 1], sc[top + 1] = k, j, e
