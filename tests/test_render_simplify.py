@@ -11,7 +11,7 @@ import pytest
 from render_scenes import FACE_ON, helices, style
 
 from flowkit.lines import Lines
-from flowkit.render import Band, Camera, ColorMap, LineRenderer
+from flowkit.render import Band, Camera, ColorMap, LineRenderer, render_lines
 from flowkit.render.simplify import (
     MAX_SPAN,
     arc_parameter,
@@ -129,6 +129,21 @@ def test_attribute_keeps_the_vertices_its_colormap_needs():
     # piecewise-linear interpolation of x^2 through the kept vertices is within the tolerance
     err = np.abs(np.interp(x, x[kept], x[kept] ** 2) - x**2).max()
     assert err <= tol["sq"] and 5 < len(kept) < n / 4
+
+
+def test_no_points_nan_points_and_single_point_lines_render():
+    s = style(Band(BLACK, 2.0), Band((1, 0, 0, 1), 1.0, depth_offset=0.1), background=WHITE)
+    empty = render_lines(Lines(np.zeros((0, 3)), [0]), s, (32, 16))
+    assert (empty == 255).all()
+    nan = render_lines(Lines(np.full((3, 3), np.nan), [0, 3]), s, (32, 16))
+    assert (nan == 255).all()
+    p = np.c_[np.linspace(-1, 1, 20), np.zeros(20), np.zeros(20)]
+    p[10] = np.nan  # a gap: two runs; the first line is a single point (not drawn)
+    with LineRenderer(Lines(p, [0, 1, 20])) as r:
+        img = r.render(s, (64, 32), FACE_ON)
+        assert r.n_drawn == 4  # both ends of the two straight runs
+    ink = np.any(img[:, :, :3] < 128, axis=2)
+    assert ink[:, 20].any() and ink[:, 44].any() and not ink[:, 32].any()  # the gap stays open
 
 
 def test_tolerance_argument_is_checked():

@@ -144,7 +144,8 @@ class LineRenderer:
             raise ValueError(f"{self.lines.n_points} points need a {size[0]}x{size[1]} texture; "
                              f"this OpenGL allows {self.ctx.info['GL_MAX_TEXTURE_SIZE']} rows")
         data = np.zeros((size[0] * size[1], components), np.float32)
-        data[:len(values)] = values.reshape(len(values), -1)[:, :components]
+        if len(values):
+            data[:len(values)] = values.reshape(len(values), -1)[:, :components]
         tex = self.ctx.texture(size, components, data.tobytes(), dtype="f4")
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return tex
