@@ -81,12 +81,12 @@ class LineRenderer:
         (defaults) choose by rasterizer: on a software one (llvmpipe), where every tiny triangle
         costs a setup and MSAA's clear+resolve costs more than a frame, tolerance 0.25 and
         analytic edge smoothing; on a GPU, every vertex and MSAA."""
-        software = is_software(ctx or default_context())
+        self.ctx = ctx or default_context()
+        software = is_software(self.ctx)
         if tolerance is None:
             tolerance = TOLERANCE if software else 0.0
         if not (math.isfinite(tolerance) and tolerance >= 0):
             raise ValueError(f"tolerance = {tolerance!r}: expected a number of pixels >= 0")
-        self.ctx = ctx or default_context()
         self.msaa = (not software) if msaa is None else bool(msaa)
         self.lines = lines
         self.tolerance = float(tolerance)
@@ -117,14 +117,17 @@ class LineRenderer:
                     self._ibo]:
             if obj is not None:
                 obj.release()
+        self._release_targets()
+        self._vaos.clear()
+        self._attrs.clear()
+
+    def _release_targets(self) -> None:
         for ms, out in self._fbos.values():
             for fbo in (ms, out):
                 if fbo is not None:
                     for att in (*fbo.color_attachments, fbo.depth_attachment):
                         att.release()
                     fbo.release()
-        self._vaos.clear()
-        self._attrs.clear()
         self._fbos.clear()
 
     def __enter__(self) -> Self:
@@ -243,13 +246,13 @@ class LineRenderer:
     def _targets(self, size: tuple[int, int], samples: int):
         key = (size, samples)
         if key not in self._fbos:
+            self._release_targets()  # keep one size: print sizes are big
             ctx = self.ctx
             out = ctx.framebuffer(ctx.renderbuffer(size, 4), ctx.depth_renderbuffer(size))
             ms = None
             if samples > 1:
                 ms = ctx.framebuffer(ctx.renderbuffer(size, 4, samples=samples),
                                      ctx.depth_renderbuffer(size, samples=samples))
-            self._fbos.clear()  # keep one size: print sizes are big
             self._fbos[key] = (ms, out)
         return self._fbos[key]
 
