@@ -32,7 +32,8 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
                       scheduler: str | None = None, workers: int | None = None,
                       snapshots=None, per_snapshot: bool = False, vector: str | None = "U",
                       chunk_seeds: int | None = None, position_dtype="float32", retries: int = 2,
-                      progress: bool | None = None, **kw) -> list[Path]:
+                      progress: bool | None = None, timings: dict | None = None,
+                      **kw) -> list[Path]:
     """Streamlines of ``seeds`` through every snapshot of ``source`` on a dask cluster.
 
     ``source``: a field file, a ``.series`` file, a glob or a multi-snapshot flowkit HDF5 file
@@ -43,7 +44,9 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
     snapshot (root attributes ``source``: the series, ``snapshot_sources``: each snapshot's), or with
     ``per_snapshot`` one file per snapshot named ``<out stem>_<i:04d><suffix>``.
     Cluster: ``client`` (a distributed.Client), ``scheduler`` (an address), else a LocalCluster
-    of ``workers`` processes.  Returns the written paths.
+    of ``workers`` processes.  ``timings``, if given, receives the seconds spent until the last
+    task finished (``tasks``), joining after that (``join``), the task count and the CPU seconds
+    the tasks used (``task_cpu``).  Returns the written paths.
     """
     opts = _options(options, kw)
     series = _select(_series(source), snapshots)
@@ -73,7 +76,8 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
                 extra = {"snapshot_time": float(times[i]), "snapshot_index": i}
             joins.append((o, mine, extra, [t.snapshot for t in mine] if multi and not per_snapshot
                           else None))
-        _run(c, tasks, joins, job, retries, position_dtype, progress, len(series), "trace")
+        _run(c, tasks, joins, job, retries, position_dtype, progress, len(series), "trace",
+             timings)
     shutil.rmtree(parts_dir, ignore_errors=True)
     return outputs
 
@@ -82,7 +86,8 @@ def pathlines_distributed(series, seeds, out, release=None, options: TraceOption
                           *, client=None, scheduler: str | None = None, workers: int | None = None,
                           vector: str = "U", chunk_seeds: int | None = None,
                           position_dtype="float32", retries: int = 2,
-                          progress: bool | None = None, **kw) -> Path:
+                          progress: bool | None = None, timings: dict | None = None,
+                          **kw) -> Path:
     """Pathlines (``flowkit.integrate.pathlines``) of ``seeds`` over seed-chunk tasks, each task
     sweeping the whole series with two snapshots in memory; one output file identical to
     ``write_lines(pathlines(series, seeds, release, ...))``."""
@@ -102,16 +107,19 @@ def pathlines_distributed(series, seeds, out, release=None, options: TraceOption
                       series=entries, release=None if rel is None else rel[a:a + chunk].copy())
                  for j, a in enumerate(range(0, n, chunk))]
         _run(c, tasks, [(out, tasks, {}, None)], job, retries, position_dtype, progress, 1,
-             "pathlines")
+             "pathlines", timings)
     shutil.rmtree(parts_dir, ignore_errors=True)
     return out
 
 
 # -- running ----------------------------------------------------------------------------------
-def _run(client, tasks, joins, job, retries, position_dtype, progress, n_snap, desc):
+def _run(client, tasks, joins, job, retries, position_dtype, progress, n_snap, desc, timings):
     """Submit the tasks, join each output as soon as its parts exist, show progress."""
+    import time
+
     from distributed import as_completed
 
+    t0 = time.perf_counter()
     total = sum(t.n_seeds for t in tasks)
     bar = _bar(total, desc, progress)
     pending = {}  # output index -> task keys not yet done
@@ -125,12 +133,14 @@ def _run(client, tasks, joins, job, retries, position_dtype, progress, n_snap, d
     task_of = {f.key: t for f, t in zip(futures, tasks)}
     join_futures = []
     snaps_done = 0
+    cpu = 0.0
     try:
         for fut in as_completed(futures):
             if fut.status != "finished":
                 raise JobError(f"{desc} task {task_of[fut.key].key} failed after {retries} retries: "
                                f"{fut.exception()!r}; parts done so far are kept, rerun to resume")
             res = fut.result()
+            cpu += res["cpu_s"]
             snap_left[res["snapshot"]] -= 1
             snaps_done += snap_left[res["snapshot"]] == 0
             if bar is not None:
@@ -144,8 +154,12 @@ def _run(client, tasks, joins, job, retries, position_dtype, progress, n_snap, d
                         join_parts, [t.part for t in mine], str(o), snapshots=snaps, attrs=extra,
                         position_dtype=position_dtype, key=f"flowkit-{job}-join{i}",
                         retries=retries, pure=False)))
+        t1 = time.perf_counter()
         for _, jf in join_futures:
             jf.result()
+        if timings is not None:
+            timings.update(tasks=t1 - t0, join=time.perf_counter() - t1, n_tasks=len(tasks),
+                           task_cpu=cpu)
     except BaseException:
         for f in futures:
             f.cancel()

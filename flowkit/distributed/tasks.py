@@ -68,13 +68,13 @@ class Task:
 
 def run_task(task: Task) -> dict:
     """Run one task on a worker; returns counts and timings (small, goes back to the client)."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     part = Path(task.part)
     if part.exists():  # complete by construction (atomic rename): done before, by someone
         with h5py.File(part, "r") as f:
             n_lines = int(f["offsets"].shape[0]) - 1
         return {"key": task.key, "lines": n_lines, "seeds": task.n_seeds, "cached": True,
-                "snapshot": task.snapshot, "seconds": time.perf_counter() - t0}
+                "snapshot": task.snapshot, "seconds": time.perf_counter() - t0, "cpu_s": 0.0}
     import numba
 
     numba.set_num_threads(min(task.numba_threads, numba.config.NUMBA_NUM_THREADS))
@@ -91,7 +91,8 @@ def run_task(task: Task) -> dict:
     t1 = time.perf_counter()
     write_part(lines, part, task.position_dtype)
     return {"key": task.key, "lines": len(lines), "seeds": task.n_seeds, "cached": False,
-            "snapshot": task.snapshot, "trace_s": t1 - t0, "seconds": time.perf_counter() - t0}
+            "snapshot": task.snapshot, "trace_s": t1 - t0, "seconds": time.perf_counter() - t0,
+            "cpu_s": time.process_time() - c0}
 
 
 def write_part(lines: Lines, path, position_dtype="float64") -> None:
