@@ -218,3 +218,15 @@ def test_cli_series_and_pathlines_on_a_running_cluster(client, tmp_path, capsys)
     assert main(["trace", str(hotroom_path()), "-o", str(out), "--snapshots", "x",
                  "--scheduler", address]) == 2
     assert "--snapshots 'x'" in capsys.readouterr().err
+
+
+def test_local_cluster_started_for_the_job(tmp_path):
+    seeds = _seeds(120, 8)
+    ref = _single(tmp_path, 1, seeds, "single.h5")
+    timings = {}
+    out = trace_distributed(hotroom_path(), seeds, tmp_path / "d.h5", OPTS, workers=1,
+                            snapshots=[1], chunk_seeds=60, timings=timings)
+    _same(ref, read_lines(out[0]))
+    assert timings["n_tasks"] == 2 and timings["task_cpu"] > 0
+    with pytest.raises(ValueError, match="workers must be at least 1"):
+        trace_distributed(hotroom_path(), seeds, tmp_path / "e.h5", workers=0)
