@@ -189,6 +189,10 @@ def test_seed_file_and_bad_inputs(client, tmp_path):
     np.save(tmp_path / "bad.npy", seeds[:, :2])
     with pytest.raises(ValueError, match=r"bad.npy: seeds must be an \(n, 3\)"):
         trace_distributed(hotroom_path(), tmp_path / "bad.npy", tmp_path / "x.h5", client=client)
+    with pytest.raises(ValueError, match="n >= 1"):
+        trace_distributed(hotroom_path(), np.zeros((0, 3)), tmp_path / "x.h5", client=client)
+    with pytest.raises(ValueError, match="chunk_seeds must be an integer >= 1, got 0"):
+        trace_distributed(hotroom_path(), seeds, tmp_path / "x.h5", client=client, chunk_seeds=0)
     with pytest.raises(ValueError, match="snapshot 7 out of range"):
         trace_distributed(hotroom_path(), seeds, tmp_path / "x.h5", client=client, snapshots=[7])
 

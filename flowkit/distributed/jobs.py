@@ -57,7 +57,7 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
     outputs = [out.with_name(f"{out.stem}_{i:04d}{out.suffix}") for i in range(len(series))] \
         if multi and per_snapshot else [out]
     with connect(client, scheduler, workers) as c:
-        chunk = chunk_seeds or chunk_size(n, len(series), slots(c))
+        chunk = _chunk(chunk_seeds, chunk_size(n, len(series), slots(c)))
         job = _job_hash("trace", [_source_id(r) for _, r in series], vector, seed_src, opts, chunk,
                         position_dtype)
         parts_dir = _parts_dir(out, job)
@@ -98,7 +98,7 @@ def pathlines_distributed(series, seeds, out, release=None, options: TraceOption
     out = Path(out)
     with connect(client, scheduler, workers) as c:
         # every task reads the whole series: fewer, larger tasks than for streamlines
-        chunk = chunk_seeds or chunk_size(n, 1, slots(c), per_task=2)
+        chunk = _chunk(chunk_seeds, chunk_size(n, 1, slots(c), per_task=2))
         job = _job_hash("pathlines", [f"{t}:{_source_id(r)}" for t, r in entries], vector, seed_src, opts,
                         chunk, position_dtype, None if rel is None else rel.tobytes())
         parts_dir = _parts_dir(out, job)
@@ -179,6 +179,14 @@ def _bar(total, desc, progress):
 
 
 # -- inputs -----------------------------------------------------------------------------------
+def _chunk(chunk_seeds, default) -> int:
+    if chunk_seeds is None:
+        return default
+    if not (isinstance(chunk_seeds, (int, np.integer)) and chunk_seeds >= 1):
+        raise ValueError(f"chunk_seeds must be an integer >= 1, got {chunk_seeds!r}")
+    return int(chunk_seeds)
+
+
 def _options(options, kw) -> TraceOptions:
     opts = options if options is not None else TraceOptions()
     if not isinstance(opts, TraceOptions):
@@ -213,12 +221,12 @@ def _seed_source(seeds):
         if p.suffix.lower() != ".npy":
             raise ValueError(f"{p}: distributed seeds come as an array or an (n, 3) .npy file")
         a = np.load(p, mmap_mode="r", allow_pickle=False)
-        if a.ndim != 2 or a.shape[1] != 3 or a.dtype.kind != "f":
+        if a.ndim != 2 or a.shape[1] != 3 or a.dtype.kind != "f" or a.shape[0] == 0:
             raise ValueError(f"{p}: seeds must be an (n, 3) float array, got {a.dtype} {a.shape}")
         return str(p.resolve()), a.shape[0]
     a = np.ascontiguousarray(np.atleast_2d(np.asarray(seeds, np.float64)))
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise ValueError(f"seeds must have shape (n, 3), got {np.shape(seeds)}")
+    if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] == 0:
+        raise ValueError(f"seeds must have shape (n, 3) with n >= 1, got {np.shape(seeds)}")
     return a, a.shape[0]
 
 
