@@ -209,6 +209,7 @@ def test_cli_series_and_pathlines_on_a_running_cluster(client, tmp_path, capsys)
                  "--chunk-seeds", "25"]) == 0
     assert "300 seed x snapshot traces" in capsys.readouterr().out
     lines = read_lines(out)
+    assert lines.attrs["source"] == str(hotroom_path())
     snap = lines.line_data.pop("snapshot")
     for s in (0, 4):
         assert lines[snap == s].equals(_single(tmp_path, s, seeds, f"ref{s}.h5"))

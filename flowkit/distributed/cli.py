@@ -65,8 +65,7 @@ def run(args, options) -> int:
     dtype = "float64" if args.float64 else "float32"
     t0 = time.perf_counter()
     if args.pathlines:
-        if snaps is not None:
-            series = [series[i] for i in snaps]
+        series = [series[i] for i in snaps] if snaps is not None else args.field
         release = None
         if args.release is not None:
             release = (np.load(args.release, allow_pickle=False)
@@ -76,7 +75,7 @@ def run(args, options) -> int:
     else:
         if args.release is not None:
             raise cli.CLIError("--release applies to --pathlines only")
-        outs = trace_distributed(series, seeds, args.output, options, snapshots=snaps,
+        outs = trace_distributed(args.field, seeds, args.output, options, snapshots=snaps,
                                  per_snapshot=args.per_snapshot, position_dtype=dtype, **cluster)
     dt = time.perf_counter() - t0
     if not args.quiet:

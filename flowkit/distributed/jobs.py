@@ -70,7 +70,7 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
         joins = []
         for i, o in enumerate(outputs):
             mine = [t for t in tasks if t.snapshot == i] if len(outputs) > 1 else tasks
-            extra = {"source": str(source), "snapshot_times": np.asarray(times),
+            extra = {"source": _label(source, series), "snapshot_times": np.asarray(times),
                      "snapshot_sources": [str(r) for _, r in series]} if multi else {}
             if multi and per_snapshot:
                 extra = {"snapshot_time": float(times[i]), "snapshot_index": i}
@@ -201,6 +201,13 @@ def _series(source) -> list:
     from ..fields.readers import load_series
 
     return load_series(source)
+
+
+def _label(source, series) -> str:
+    """What the series is, for the ``source`` attribute: its path or glob, else its ends."""
+    if not isinstance(source, (list, tuple)):
+        return str(source)
+    return f"{series[0][1]} .. {series[-1][1]} ({len(series)} snapshots)"
 
 
 def _select(series, snapshots):
