@@ -21,9 +21,11 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q
 
+# Peers side by side (VTK, streamtracer, scipy); each script prints its own table and ratios.
+BENCHES := bench_trace bench_opencl bench_render bench_styles bench_scene bench_distributed lines_io
 bench: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]'
-	$(PY) benchmarks/run_all.py
+	for b in $(BENCHES); do $(PY) benchmarks/$$b.py || exit 1; done
 
 clean:
 	rm -rf $(VENV) build dist *.egg-info

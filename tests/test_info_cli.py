@@ -77,10 +77,13 @@ def test_info_on_a_vtu_glob(capsys):
     assert "lattice rebuilt exactly" in out
 
 
-def test_demo_prints_the_heated_room(capsys):
-    rc, out, _ = run(capsys, "demo")
+def test_demo_prints_the_heated_room_and_writes_its_outputs(capsys, tmp_path):
+    rc, out, _ = run(capsys, "demo", "--out", str(tmp_path))
     assert rc == 0 and "hotroom.h5[snapshot 4]" in out and "time: 2000" in out
     assert "U: vector (3)" in out and "p: scalar" in out
+    written = [line.split(" ", 1)[1] for line in out.splitlines() if line.startswith("wrote ")]
+    assert any(w.endswith(".h5") for w in written) and any(w.endswith(".png") for w in written)
+    assert all(Path(w).is_file() and Path(w).is_relative_to(tmp_path) for w in written)
 
 
 # -- the committed dataset -------------------------------------------------------------------
