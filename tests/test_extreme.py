@@ -192,18 +192,13 @@ def test_closed_orbits_long_time_radius_drift(tol):
     print(f"radius drift after {periods} periods at tol {tol:g}: {drift:.3g}")
 
 
-KERNEL_NORM_BUG = pytest.mark.xfail(strict=True, reason=(
-    "kernel bug (reported): speed = sqrt(u*u + v*v + w*w) in kernel._f overflows above ~1.3e154 "
-    "and underflows below ~1.5e-154, so a field in such units ends at its seed: seed_outside "
-    "(inf speed) or stagnation (zero speed); a scaled norm (math.hypot) fixes it"))
-
-
-@pytest.mark.parametrize("scale", [pytest.param(1e-200, marks=KERNEL_NORM_BUG),
-                                   pytest.param(1e200, marks=KERNEL_NORM_BUG), 1e-100, 1e100])
-def test_huge_and_tiny_speed_units(scale):
+# speeds whose squares overflow or underflow (|v| beyond ~1e154 or below ~1e-154) included
+@pytest.mark.parametrize("scale", [1e-200, 1e200, 1e-100, 1e100, 1e-300, 1e300])
+@AWARE
+def test_huge_and_tiny_speed_units(scale, aware):
     f = SolidBodyRotation().to_field(9)
     L = trace(Field(f.grid, f.vector * scale), [[0, -0.5, 0]], max_time=6.0 / scale,
-              max_steps=1000, **TOL)
+              max_steps=1000, cell_aware=aware, **TOL)
     _check(L, [Reason.MAX_TIME], 1000)
     np.testing.assert_allclose(L.points[-1], SolidBodyRotation().trajectory([[0, -0.5, 0]], 6.0)[0],
                                atol=1e-4)

@@ -188,3 +188,24 @@ def test_rosenbrock_terminations():
     assert np.all(np.isfinite(L.points)) and L.points[-1, 2] <= 5.0 + 1e-9
     with pytest.raises(ValueError, match="direction"):
         trace_rosenbrock(STIFF_GRID, SEEDS, direction="both")
+
+
+@pytest.mark.parametrize("direction", ["forward", "both"])
+@pytest.mark.parametrize("aware", [True, False], ids=["cell_aware", "plain"])
+def test_kernel_flags_the_stiff_field_and_not_abc_or_rotation(aware, direction):
+    # dopri5 in the kernel: line_data["stiff"] from Hairer & Wanner's test on its own stages
+    L = trace(STIFF_GRID, SEEDS, rtol=1e-6, atol=1e-6, max_time=1.0, cell_aware=aware,
+              direction=direction)
+    assert L.line_data["stiff"].dtype == np.int8
+    assert np.all(L.line_data["stiff"] == 1), L.line_data["stiff"]
+    mild = [(SolidBodyRotation().to_field(9), [[0.5, 0.0, 0.1], [0.2, -0.3, 0.0]], 20.0),
+            (ABCFlow().to_field(17, bounds=[[0, 2 * np.pi]] * 3), [[3.0, 3.1, 2.9], [1, 2, 3]], 20.0)]
+    for fld, seeds, T in mild:
+        for tol in (1e-3, 1e-8):
+            L = trace(fld, seeds, rtol=tol, atol=tol, max_time=T, cell_aware=aware,
+                      direction=direction)
+            assert np.all(L.line_data["n_accepted"] >= STIFF_STEPS)  # room for the flag
+            assert np.all(L.line_data["stiff"] == 0), (fld.source, tol)
+    # only dopri5 has the stage pair: other methods report 0, never a guess
+    L = trace(STIFF_GRID, SEEDS, method="cashkarp", rtol=1e-6, atol=1e-6, max_time=0.2)
+    assert np.all(L.line_data["stiff"] == 0)

@@ -33,6 +33,7 @@ from numba import njit, prange
 
 from ..fields.interp import locate_axis
 from .reasons import Reason
+from .stiffness import NONSTIFF_RESET, STIFF_STEPS, dp5_hlambda, stiff_update  # noqa: F401 (CL)
 
 QMAX = 8  # highest dense-output degree a method may have
 # float state (sf) columns
@@ -52,8 +53,8 @@ O_RTOL, O_ATOL, O_SAFETY, O_FACMIN, O_FACMAX, O_BETA = 0, 3, 6, 7, 8, 9
 O_H0, O_HMIN, O_HMAX, O_MAXLEN, O_MAXTIME, O_STAG, O_CELLFAC = 10, 11, 12, 13, 14, 15, 16
 NFO = 17
 # int options (io)
-P_MAXSTEPS, P_PARAM, P_AWARE, P_EMIT = 0, 1, 2, 3
-NIO = 4
+P_MAXSTEPS, P_PARAM, P_AWARE, P_EMIT, P_STIFF = 0, 1, 2, 3, 4
+NIO = 5  # P_STIFF: stage index of the stiffness pair (dopri5: 5, c = 1 like f(y1)); -1 none
 EMIT_STEPS, EMIT_SPACING, EMIT_FINAL = 0, 1, 2
 # events
 EV_NONE, EV_FACE, EV_BOUNDARY, EV_DEPLIM = 0, 1, 2, 3
@@ -150,6 +151,19 @@ def _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef):
 
 
 @njit(cache=True, inline="always")
+def _norm3(u, v, w):
+    """|(u, v, w)|: the plain formula, rescaled by the largest component only where the squares
+    would overflow or underflow (so normal speeds stay bit-identical to the OpenCL kernel's)."""
+    sp = math.sqrt(u * u + v * v + w * w)
+    if not (sp > 1e-150 and sp < 1e150):
+        m = max(abs(u), abs(v), abs(w))
+        if m > 0.0 and m < math.inf:
+            a, b, c = u / m, v / m, w / m
+            sp = m * math.sqrt(a * a + b * b + c * c)
+    return sp
+
+
+@njit(cache=True, inline="always")
 def _fc(px, py, pz, param, cf, coef, k, row):
     """Right-hand side from the current cell's polynomial into k[row, 0:4]; returns |v|."""
     tx = (px - cf[0]) * cf[6]
@@ -161,7 +175,7 @@ def _fc(px, py, pz, param, cf, coef, k, row):
         + ty * (coef[2, 1] + tz * coef[6, 1]) + tz * coef[3, 1]
     w = coef[0, 2] + tx * (coef[1, 2] + ty * (coef[4, 2] + tz * coef[7, 2]) + tz * coef[5, 2]) \
         + ty * (coef[2, 2] + tz * coef[6, 2]) + tz * coef[3, 2]
-    sp = math.sqrt(u * u + v * v + w * w)
+    sp = _norm3(u, v, w)
     if param == 0:
         k[row, 0] = u
         k[row, 1] = v
@@ -334,6 +348,27 @@ def _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, 
     return True
 
 
+@njit(cache=True)
+def _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1):
+    """The step's error norm with h inside the squares: the value of the loop's formula (h
+    outside), used only where (e / sc)² over- or underflows (speeds beyond about 1e±150)."""
+    e5 = 0.0
+    e3 = 0.0
+    for a in range(3):
+        sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
+        ea = 0.0
+        eb = 0.0
+        for m in range(n_err):
+            ea += me[m] * k[m, a]
+            eb += me2[m] * k[m, a]
+        e5 += (hs * ea / sc) ** 2
+        e3 += (hs * eb / sc) ** 2
+    if has_e2:
+        den = e5 + 0.01 * e3
+        return 0.0 if den == 0.0 else e5 / math.sqrt(den * 3.0)
+    return math.sqrt(e5 / 3.0)
+
+
 # -- one line -------------------------------------------------------------------------------------
 @njit(cache=True)
 def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
@@ -342,6 +377,7 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
     q = mp.shape[1]
     param, aware, emit = io[P_PARAM], io[P_AWARE] != 0, io[P_EMIT]
     max_steps = io[P_MAXSTEPS]
+    st_stiff = io[P_STIFF]
     safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
     hmin, hmax, cellfac, stag = fo[O_HMIN], fo[O_HMAX], fo[O_CELLFAC], fo[O_STAG]
     lim_ind = fo[O_MAXTIME] if param == 0 else fo[O_MAXLEN]
@@ -361,6 +397,8 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
     ci = np.full(3, -1, np.int64)
     y = np.empty(4)
     yt = np.empty(3)
+    ys = np.empty(3)  # the point of stage st_stiff (stiffness detection)
+    y1 = np.empty(3)
     qd = np.empty((4, QMAX))
     dlo = np.array([gx[0], gy[0], gz[0]])  # domain bounds
     dhi = np.array([gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]])
@@ -397,6 +435,10 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
                 d1 += (k[0, a] / sc) ** 2
             d0 = math.sqrt(d0 / 3.0)
             d1 = math.sqrt(d1 / 3.0)
+            if not (d1 < math.inf):  # the squares overflowed (huge speeds): rescaled norm
+                d1 = _norm3(k[0, 0] / (fo[O_ATOL] + fo[O_RTOL] * abs(y[0])),
+                            k[0, 1] / (fo[O_ATOL + 1] + fo[O_RTOL + 1] * abs(y[1])),
+                            k[0, 2] / (fo[O_ATOL + 2] + fo[O_RTOL + 2] * abs(y[2]))) / math.sqrt(3.0)
             h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
             for a in range(3):
                 yt[a] = y[a] + d * h0 * k[0, a]
@@ -405,7 +447,13 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
             for a in range(3):
                 sc = fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a])
                 d2 += ((k[1, a] - k[0, a]) / sc) ** 2
-            d2 = math.sqrt(d2 / 3.0) / h0
+            d2 = math.sqrt(d2 / 3.0)
+            if not (d2 < math.inf):
+                d2 = _norm3((k[1, 0] - k[0, 0]) / (fo[O_ATOL] + fo[O_RTOL] * abs(y[0])),
+                            (k[1, 1] - k[0, 1]) / (fo[O_ATOL + 1] + fo[O_RTOL + 1] * abs(y[1])),
+                            (k[1, 2] - k[0, 2]) / (fo[O_ATOL + 2] + fo[O_RTOL + 2] * abs(y[2]))
+                            ) / math.sqrt(3.0)
+            d2 = d2 / h0
             if max(d1, d2) <= 1e-15 or not math.isfinite(d2):
                 h1 = max(1e-6, h0 * 1e-3)
             else:
@@ -508,6 +556,8 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
                 for m in range(st):
                     acc += ma[st, m] * k[m, a]
                 yt[a] = y[a] + hs * acc
+            if st == st_stiff:
+                ys[0], ys[1], ys[2] = yt[0], yt[1], yt[2]
             if aware:
                 _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
             else:
@@ -544,12 +594,15 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
                     eb += me2[m] * k[m, a]
                 e5 += (ea / sc) ** 2
                 e3 += (eb / sc) ** 2
+        y1[0], y1[1], y1[2] = y1x, y1y, y1z
         if adaptive:
             if has_e2:  # Hairer's DOP853 estimate: |e5|^2 / sqrt(|e5|^2 + 0.01 |e3|^2)
                 den = e5 + 0.01 * e3
                 err = 0.0 if den == 0.0 else abs(hs) * e5 / math.sqrt(den * 3.0)
             else:
                 err = abs(hs) * math.sqrt(e5 / 3.0)
+            if finite and not (e5 + e3 > 1e-250 and e5 + e3 < 1e250):
+                err = _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1)
             if not math.isfinite(err):
                 finite = False
         if not finite:
@@ -586,6 +639,8 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
                 reason = R_NAN
                 break
             continue
+        if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
+            si[l, I_STIFF] = stiff_update(si[l, I_STIFF], dp5_hlambda(hs, k, ys, y1))
         # next step size (Hairer's PI controller with Gustafsson's memory)
         if adaptive:
             if err == 0.0:

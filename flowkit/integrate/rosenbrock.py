@@ -36,7 +36,7 @@ from ..fields import Field
 from ..lines import Lines
 from . import attributes as _attributes
 from . import kernel as K
-from .kernel import _dense, _f, _move, _put, _relocate, _root
+from .kernel import _dense, _f, _move, _norm3, _put, _relocate, _root
 from .options import OptionsError, TraceOptions
 from .stiffness import HLAMBDA_STIFF, cell_jacobian, spectral_radius_bound, stiff_update
 
@@ -74,7 +74,7 @@ def _rhs_jac(px, py, pz, param, coef, cf, J, g, u):
     for c in range(3):
         u[c] = coef[0, c] + tx * (coef[1, c] + ty * (coef[4, c] + tz * coef[7, c]) + tz * coef[5, c]) \
             + ty * (coef[2, c] + tz * coef[6, c]) + tz * coef[3, c]
-    sp = math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    sp = _norm3(u[0], u[1], u[2])
     # g = ∇|u| = Jᵀ û
     for j in range(3):
         g[j] = (J[0, j] * u[0] + J[1, j] * u[1] + J[2, j] * u[2]) / sp
@@ -110,7 +110,7 @@ def _inv3(M, Mi):
 
 @njit(cache=True)
 def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
-          sf, si, out_p, out_par, out_n):
+          si, out_p, out_par, out_n):
     """Trace line l into out_*[l]; si[l] = (status, reason, n_acc, n_rej, stiff state,
     stiff steps)."""
     Bcap = out_p.shape[1]
@@ -138,6 +138,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
     g = np.empty(3)
     u = np.empty(3)
     rhs = np.empty(4)
+    qd = np.empty((4, K.QMAX))  # Hermite dense coefficients of the step
 
     px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
     inside = math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)
@@ -301,16 +302,16 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
         if need_face or need_dep:
             for a in range(4):
                 dl = (y1[a] - y[a]) / hs
-                sf[l, K.S_Q + a * K.QMAX] = k[0, a]
-                sf[l, K.S_Q + a * K.QMAX + 1] = 3.0 * dl - 2.0 * k[0, a] - k[4, a]
-                sf[l, K.S_Q + a * K.QMAX + 2] = -2.0 * dl + k[0, a] + k[4, a]
+                qd[a, 0] = k[0, a]
+                qd[a, 1] = 3.0 * dl - 2.0 * k[0, a] - k[4, a]
+                qd[a, 2] = -2.0 * dl + k[0, a] + k[4, a]
         if need_face:
             for a in range(3):
                 if y1[a] < cf[a]:
-                    tha = _root(sf, l, a, _Q, y[a], hs, cf[a], -1.0, 1.0)
+                    tha = _root(qd, a, _Q, y[a], hs, cf[a], -1.0, 1.0)
                     face = cf[a]
                 elif y1[a] > cf[3 + a]:
-                    tha = _root(sf, l, a, _Q, y[a], hs, cf[3 + a], 1.0, 1.0)
+                    tha = _root(qd, a, _Q, y[a], hs, cf[3 + a], 1.0, 1.0)
                     face = cf[3 + a]
                 else:
                     continue
@@ -320,7 +321,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
                     ev_face = face
                     ev = K.EV_FACE
         if need_dep:
-            thd = _root(sf, l, 3, _Q, y[3], hs, d * lim_dep, d, 1.0)
+            thd = _root(qd, 3, _Q, y[3], hs, d * lim_dep, d, 1.0)
             if ev == K.EV_NONE or thd < th:
                 th = thd
                 ev = K.EV_DEPLIM
@@ -332,10 +333,10 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
             tau = d * lim_ind if hit_lim else tau + hs
         else:
             y0x, y0y, y0z, y0d = y[0], y[1], y[2], y[3]
-            y[0] = _dense(sf, l, 0, _Q, y0x, hs, th)
-            y[1] = _dense(sf, l, 1, _Q, y0y, hs, th)
-            y[2] = _dense(sf, l, 2, _Q, y0z, hs, th)
-            y[3] = d * lim_dep if ev == K.EV_DEPLIM else _dense(sf, l, 3, _Q, y0d, hs, th)
+            y[0] = _dense(qd, 0, _Q, y0x, hs, th)
+            y[1] = _dense(qd, 1, _Q, y0y, hs, th)
+            y[2] = _dense(qd, 2, _Q, y0z, hs, th)
+            y[3] = d * lim_dep if ev == K.EV_DEPLIM else _dense(qd, 3, _Q, y0d, hs, th)
             tau = tau + th * hs
             hit_lim = False
             if ev == K.EV_FACE:
@@ -371,10 +372,10 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
 
 @njit(cache=True, parallel=True)
 def _advance(seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
-             sf, si, out_p, out_par, out_n):
+             si, out_p, out_par, out_n):
     for l in prange(seeds.shape[0]):
         _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
-              sf, si, out_p, out_par, out_n)
+              si, out_p, out_par, out_n)
 
 
 def trace_rosenbrock(field: Field, seeds, options: TraceOptions | None = None, **kw) -> Lines:
@@ -395,7 +396,6 @@ def trace_rosenbrock(field: Field, seeds, options: TraceOptions | None = None, *
     setup = T._Setup(field, opts)
     n = seeds.shape[0]
     dirs = np.full(n, -1.0 if opts.direction == "backward" else 1.0)
-    sf = np.zeros((n, K.NF))
     si = np.zeros((n, 6), np.int64)
     cap = int(min(opts.max_steps + 2, 1024))
     todo = np.arange(n)
@@ -408,7 +408,7 @@ def trace_rosenbrock(field: Field, seeds, options: TraceOptions | None = None, *
         out_n = np.zeros(todo.size, np.int64)
         ssi = np.zeros((todo.size, 6), np.int64)
         _advance(sub, dirs[todo], *setup.grid, setup.vec, ALPHA, GAMMAS, B, BHAT, setup.fo,
-                 setup.io, sf[:todo.size], ssi, out_p, out_par, out_n)
+                 setup.io, ssi, out_p, out_par, out_n)
         done = ssi[:, 0] != _OVERFLOW
         for j in np.flatnonzero(done):
             pts_of[todo[j]] = out_p[j, :out_n[j]]

@@ -106,7 +106,8 @@ def _empty(field, opts) -> Lines:
     for n in opts.attributes:
         pd[n] = np.zeros((0, 3)) if n in ("velocity", "vorticity") else np.zeros(0)
     ld = {"seed_id": np.zeros(0, np.int64), "reason": np.zeros(0, np.int8),
-          "n_accepted": np.zeros(0, np.int32), "n_rejected": np.zeros(0, np.int32)}
+          "n_accepted": np.zeros(0, np.int32), "n_rejected": np.zeros(0, np.int32),
+          "stiff": np.zeros(0, np.int8)}
     if opts.direction == "both":
         ld["reason_backward"] = np.zeros(0, np.int8)
     return Lines(np.zeros((0, 3)), np.zeros(1, np.int64), pd, ld)
@@ -119,7 +120,7 @@ def _typical_speed(field: Field, max_nodes: int = 1 << 20) -> float:
     shape = np.array(field.grid.shape)
     stride = max(1, int(np.ceil((shape.prod() / max_nodes) ** (1 / 3))))
     v = field.vector[::stride, ::stride, ::stride]
-    sp = np.sqrt(np.einsum("...i,...i->...", v, v)).ravel()
+    sp = np.hypot(np.hypot(v[..., 0], v[..., 1]), v[..., 2]).ravel()  # no over/underflow
     sp = sp[np.isfinite(sp) & (sp > 0)]
     return float(np.median(sp)) if sp.size else 0.0
 
@@ -163,6 +164,8 @@ class _Setup:
         io[K.P_MAXSTEPS] = opts.max_steps
         io[K.P_PARAM] = 1 if opts.parameter == "arc_length" else 0
         io[K.P_AWARE] = int(opts.cell_aware)
+        # Hairer & Wanner's stiffness test needs DP5's stage pair at c = 1 (stages 5 and 6)
+        io[K.P_STIFF] = 5 if m.name == "dopri5" else -1
         self.io = io
 
     def run(self, seeds, dirs, emit, spacing, phase, budget, on_pass=None):
@@ -276,6 +279,7 @@ def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> L
     reason = si[:, K.I_REASON].astype(np.int8)
     nacc = si[:, K.I_NACC].astype(np.int32)
     nrej = si[:, K.I_NREJ].astype(np.int32)
+    stiff = ((si[:, K.I_STIFF] >> 16) & 1).astype(np.int8)  # stiffness.is_stiff's flag bit
     ld = {"seed_id": np.arange(id0, id0 + n, dtype=np.int64)}
     if both:
         line = owner // 2
@@ -285,11 +289,12 @@ def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> L
         idx = np.flatnonzero(keep)[order]
         line_of = line[idx]
         ld.update(reason=reason[1::2], n_accepted=nacc[0::2] + nacc[1::2],
-                  n_rejected=nrej[0::2] + nrej[1::2], reason_backward=reason[0::2])
+                  n_rejected=nrej[0::2] + nrej[1::2], reason_backward=reason[0::2],
+                  stiff=np.maximum(stiff[0::2], stiff[1::2]))
         pts, t, s = pts[idx], t[idx], s[idx]
     else:
         line_of = owner
-        ld.update(reason=reason, n_accepted=nacc, n_rejected=nrej)
+        ld.update(reason=reason, n_accepted=nacc, n_rejected=nrej, stiff=stiff)
     offsets = np.concatenate([[0], np.cumsum(np.bincount(line_of, minlength=n))])
     seed_of = seeds[line_of]
     pd = _attributes.compute(field, opts.attributes, pts, t, s, seed_of) if opts.attributes else {}
