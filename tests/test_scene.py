@@ -284,6 +284,7 @@ OK_FIELD = '[field]\nfile = "field.h5"\n'
 OK_SEEDS = '[seeds]\nspec = "line:0,0,0:0.5,0,0:3"\n'
 OK_STYLES = "[styles.a]\n[[styles.a.bands]]\nwidth = 2\n"
 OK = OK_FIELD + OK_SEEDS + OK_STYLES
+ANIM = '[outputs]\nanimation = "a.gif"\n'
 BAD = {
     "no_version": (OK, ["missing key 'version'"]),
     "version_2": ("version = 2\n" + OK, ["version = 2", "expected 1"]),
@@ -332,8 +333,24 @@ BAD = {
                            ["images = 'same.png'", "with {view}", "2 views"]),
     "lines_pattern": ("version = 1\n" + OK + '[outputs]\nlines = "{view}.h5"\n',
                       ["lines = '{view}.h5'", "{snapshot}, {time}"]),
-    "animation": ("version = 1\n" + OK + '[outputs]\nanimation = "a.mp4"\n',
-                  ["unknown key 'animation'", "images, lines"]),
+    "outputs_key": ("version = 1\n" + OK + '[outputs]\nmovie = "a.gif"\n',
+                    ["unknown key 'movie'", "animation, fps, frames, images, lines"]),
+    "frames_zero": ("version = 1\n" + OK + ANIM + "frames = 0\n",
+                    ["[outputs]", "frames = 0", "an integer from 1 to 100000"]),
+    "frames_negative": ("version = 1\n" + OK + ANIM + "frames = -1\n",
+                        ["[outputs]", "frames = -1", "an integer from 1 to 100000"]),
+    "frames_string": ("version = 1\n" + OK + ANIM + 'frames = "x"\n',
+                      ["[outputs]", "frames = 'x'", "an integer from 1 to 100000"]),
+    "fps_zero": ("version = 1\n" + OK + ANIM + "fps = 0\n", ["[outputs]", "fps = 0", "> 0"]),
+    "animation_suffix": ("version = 1\n" + OK + '[outputs]\nanimation = "a.avi"\n',
+                         ["[outputs]", "animation = 'a.avi'", ".png, .gif, .mp4"]),
+    "animation_pattern": ("version = 1\n" + OK + '[outputs]\nanimation = "{veiw}.gif"\n',
+                          ["animation = '{veiw}.gif'", "not {veiw}"]),
+    "animation_two_views": ("version = 1\n" + OK + "[views.v]\n[views.w]\n"
+                            '[outputs]\nimages = "{view}.png"\nanimation = "a.gif"\n',
+                            ["animation = 'a.gif'", "with {view}", "2 views"]),
+    "frames_alone": ("version = 1\n" + OK + "[outputs]\nframes = 8\n",
+                     ["[outputs]", "frames = 8", "without animation"]),
     "not_toml": ("version = 1\n[field\n", ["not valid TOML"]),
 }
 
@@ -359,6 +376,73 @@ def test_snapshot_out_of_range_is_named(tmp_path, field_file):
     path = write_scene(tmp_path, PLAIN, field='file = "field.h5"\nsnapshot = 3')
     with pytest.raises(SceneError, match=r"snapshot = 3 is not allowed.*has 1 snapshot"):
         make_plan(load_scene(path))
+
+
+# -- animation ----------------------------------------------------------------------------------
+# arrows moving along the lines plus a two-colour pattern: every frame differs from the others
+MOVING = """\
+    [styles.arrows]
+    antialias = "none"
+    [[styles.arrows.bands]]
+    color = "#ffff00"
+    width = 3
+    shape = { name = "arrow", length = 0.6 }
+    pattern = { color = "#0000ff", length = 0.6 }
+    """
+TWO_VIEWS = (f'[views.moving]\nstyle = "arrows"\nsize = {SIZE}\n'
+             f'[views.still]\nstyle = "plain"\nsize = {SIZE}\n')
+ANIMATION = '[outputs]\nimages = "{view}.png"\nanimation = "{view}_{snapshot}.gif"\nframes = 4\n'
+
+
+def test_animation_output_writes_moving_frames_after_the_stills(tmp_path, field_file, spy,
+                                                                capsys):
+    from PIL import Image
+
+    path = write_scene(tmp_path, MOVING + PLAIN, TWO_VIEWS, outputs=ANIMATION + "fps = 10\n")
+    log = []
+    res = run(path, report=log.append)
+    snap = res.snapshots[0]
+    gif = Image.open(snap.animations["moving"][0])
+    assert snap.animations["moving"] == [tmp_path / "moving_0.gif"]
+    assert gif.n_frames == 4 and gif.info["duration"] == 100 and gif.size == (96, 64)
+    frames = []
+    for k in range(4):
+        gif.seek(k)
+        frames.append(np.asarray(gif.convert("RGB")))
+    assert len({f.tobytes() for f in frames}) == 4  # the arrows moved in every frame
+    # the still view is not animated, and the run says why (a still loop would be 4 equal frames)
+    assert "still" not in snap.animations and not (tmp_path / "still_0.gif").exists()
+    warning = [m for m in log if m.startswith("warning:")]
+    assert warning == [("warning: no animation for view 'still': style 'plain' has no band "
+                        "'shape' or 'pattern' to move, so every frame would be the same picture "
+                        "(stills only)")]
+    # progress like the other stages, the animation after the still images
+    stages = [m.split("] ", 1)[1].split(":")[0] for m in log if m.startswith("[1/1")]
+    assert list(dict.fromkeys(stages))[-3:] == ["render moving", "render still", "animate moving"]
+    assert [m for m in log if ": frame " in m] == [f"[1/1 snapshot 0 t=0] animate moving: frame {k}/4"
+                                                 for k in (1, 2, 3)]
+    assert "moving_0.gif (4 frames at 10 fps, 96x64)" in log[-2]
+    assert log[-1].startswith("scene done: 1 snapshot(s), 2 image(s), 1 animation(s)")
+    # numbered PNG frames through the CLI, from the cache; frame 0 is the still picture
+    write_scene(tmp_path, MOVING + PLAIN, TWO_VIEWS,
+                outputs=ANIMATION.replace(".gif", ".png").replace("4", "3"))
+    assert main(["scene", str(path)]) == 0
+    assert "animate moving: " in capsys.readouterr().err and len(spy["trace"]) == 1
+    names = sorted(p.name for p in tmp_path.glob("moving_0_*.png"))
+    assert names == ["moving_0_0000.png", "moving_0_0001.png", "moving_0_0002.png"]
+    first = np.asarray(Image.open(tmp_path / "moving_0_0000.png"))
+    np.testing.assert_array_equal(first, np.asarray(Image.open(tmp_path / "moving.png")))
+    assert not np.array_equal(first, np.asarray(Image.open(tmp_path / "moving_0_0001.png")))
+
+
+def test_explain_mentions_the_animation(tmp_path, field_file, capsys, spy):
+    path = write_scene(tmp_path, MOVING + PLAIN, TWO_VIEWS, outputs=ANIMATION)
+    assert main(["scene", str(path), "--explain"]) == 0
+    out = capsys.readouterr().out
+    assert ("animation: {view}_{snapshot}.gif, 4 frames at 12 fps (the shapes and patterns move "
+            "one period), rendered after the stills for view 'moving'") in out
+    assert "  warning: no animation for view 'still': style 'plain' has no band" in out
+    assert spy["trace"] == [] and not (tmp_path / "moving_0.gif").exists()
 
 
 # -- series -------------------------------------------------------------------------------------

@@ -30,6 +30,9 @@
     [outputs]                # relative to the output directory (default: this file's directory)
     lines = "lines_{snapshot}.h5"        # placeholders: {snapshot} {time}
     images = "{view}_{snapshot}.png"     # placeholders: {view} {style} {snapshot} {time}
+    animation = "{view}_{snapshot}.gif"  # optional, per view: .gif, .png (numbered) or .mp4
+    frames = 24                          # the pattern moves one period over the frames
+    fps = 12.0
 
     [cache]
     dir = ".flowkit-cache"   # relative to this file
@@ -51,6 +54,7 @@ from pathlib import Path
 
 from ..integrate.options import OptionsError, TraceOptions
 from ..integrate.seeds import FILE_TYPES, SeedError, parse_seed_spec
+from ..render.animate import FORMATS as ANIMATION_FORMATS
 from ..render.camera import Camera
 from ..render.style import (
     STYLE_VERSION,
@@ -59,6 +63,7 @@ from ..render.style import (
     _check_keys,
     _fail,
     _name,
+    _number,
     camera_from_dict,
     load_style,
     style_from_dict,
@@ -68,6 +73,8 @@ SCENE_VERSION = 1
 DATASETS = ("hotroom",)
 DEFAULT_SIZE = (1600, 900)
 DEFAULT_IMAGES = "{view}_{snapshot}.png"
+DEFAULT_FRAMES = 24
+DEFAULT_FPS = 12.0
 # TraceOptions the scene decides itself: attributes (from the styles), progress, budget
 TRACE_KEYS = tuple(f.name for f in dataclasses.fields(TraceOptions)
                    if f.name not in ("attributes", "progress", "budget"))
@@ -99,6 +106,9 @@ class View:
 class Outputs:
     lines: str | None = None
     images: str | None = DEFAULT_IMAGES
+    animation: str | None = None  # per view, after the stills (flowkit.render.animate)
+    frames: int = DEFAULT_FRAMES
+    fps: float = DEFAULT_FPS
 
 
 @dataclass(frozen=True)
@@ -337,12 +347,29 @@ def placeholders(pattern: str) -> set[str]:
 
 
 def _outputs(where: str, t: dict, views: dict[str, View]) -> Outputs:
-    _check_keys(where, t, {"lines", "images"})
+    _check_keys(where, t, {"lines", "images", "animation", "frames", "fps"})
     lines = _pattern(where, "lines", t["lines"], LINES_FIELDS) if "lines" in t else None
     images = _pattern(where, "images", t.get("images", DEFAULT_IMAGES), IMAGE_FIELDS)
     if len(views) > 1 and "view" not in placeholders(images):
         _fail(where, "images", images, f"a pattern with {{view}}: the scene has {len(views)} views")
-    return Outputs(lines, images)
+    if "animation" not in t:
+        for key in ("frames", "fps"):
+            if key in t:
+                raise SceneError(f"{where}: {key} = {t[key]!r} is given without animation (add "
+                                 "animation = '{view}_{snapshot}.gif', or remove it)")
+        return Outputs(lines, images)
+    anim = _pattern(where, "animation", t["animation"], IMAGE_FIELDS)
+    if Path(anim).suffix.lower() not in ANIMATION_FORMATS:
+        _fail(where, "animation", anim, "a path ending in " + ", ".join(ANIMATION_FORMATS)
+              + " (.png: numbered frames)")
+    if len(views) > 1 and "view" not in placeholders(anim):
+        _fail(where, "animation", anim,
+              f"a pattern with {{view}}: the scene has {len(views)} views")
+    frames = t.get("frames", DEFAULT_FRAMES)
+    if isinstance(frames, bool) or not isinstance(frames, int) or not 1 <= frames <= 100_000:
+        _fail(where, "frames", frames, "an integer from 1 to 100000")
+    fps = _number(where, "fps", t.get("fps", DEFAULT_FPS), lo=0.0, lo_open=True)
+    return Outputs(lines, images, anim, frames, fps)
 
 
 def _cache(where: str, t: dict, base: Path) -> tuple[Path, bool]:

@@ -110,6 +110,16 @@ def style_reads(style) -> list[tuple[str, str]]:
     return out
 
 
+def still_views(scene: Scene) -> dict[str, str]:
+    """Views an ``[outputs] animation`` cannot move -> why: their style has no shape or colour
+    pattern, so every frame would be the same picture.  Empty without an animation output."""
+    if scene.outputs.animation is None:
+        return {}
+    return {v.name: f"style '{v.style}' has no band 'shape' or 'pattern' to move, so every frame "
+                    "would be the same picture (stills only)"
+            for v in scene.views.values() if not scene.styles[v.style].animated}
+
+
 def _where(scene: Scene) -> str:
     return str(scene.path) if scene.path is not None else "scene"
 
@@ -179,6 +189,13 @@ def explain(plan: Plan, cache=None) -> str:
                      f"{v.camera.projection}")
     outs = sc.outputs
     lines.append(f"outputs: lines {outs.lines or '(not written)'}; images {outs.images}")
+    if outs.animation is not None:
+        still = still_views(sc)
+        moving = [v for v in sc.views if v not in still]
+        lines.append(f"animation: {outs.animation}, {outs.frames} frames at {outs.fps:g} fps "
+                     f"(the shapes and patterns move one period), rendered after the stills for "
+                     f"view{'s' * (len(moving) != 1)} {', '.join(map(repr, moving)) or 'none'}")
+        lines += [f"  warning: no animation for view '{v}': {why}" for v, why in still.items()]
     if cache is not None:
         lines.append(f"cache: {cache.dir}")
         for s in plan.snapshots:

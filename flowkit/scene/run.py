@@ -1,5 +1,6 @@
-"""Run a scene: for every snapshot, lines (from the cache, or traced), the lines file, and one
-image per view; each stage reports its progress and time.
+"""Run a scene: for every snapshot, lines (from the cache, or traced), the lines file, one
+image per view, then (with ``[outputs] animation``) one animation per view; each stage reports its
+progress and time.
 
 With ``workers`` > 1 and several snapshots to trace, the traces run on a Dask LocalCluster
 (``flowkit.distributed.trace_distributed``, one file per snapshot, float64 positions so the cache
@@ -10,6 +11,8 @@ run says so.
 
 from __future__ import annotations
 
+import importlib.util
+import itertools
 import sys
 import time
 from dataclasses import dataclass, field
@@ -22,7 +25,7 @@ from ..integrate import trace as tracing
 from ..lines import Lines
 from .cache import LinesCache
 from .model import Scene, load_scene, placeholders
-from .plan import Plan, Snapshot, make_plan
+from .plan import Plan, Snapshot, make_plan, still_views
 
 
 @dataclass
@@ -34,6 +37,7 @@ class SnapshotResult:
     n_points: int = 0
     lines_path: Path | None = None
     images: dict[str, Path] = field(default_factory=dict)
+    animations: dict[str, list[Path]] = field(default_factory=dict)  # view -> files written
     uploaded: tuple[str, ...] = ()    # attributes the renderer put on the GPU
     seconds: dict[str, float] = field(default_factory=dict)
 
@@ -76,14 +80,19 @@ def run_scene(scene: Scene | str | Path, *, snapshot=None, out_dir=None, cache_d
         traced = _trace_on_cluster(plan, cache, workers, notes, report)
     for n in notes:
         report(f"note: {n}")
+    for v, why in still_views(scene).items():  # say so rather than write a still loop
+        notes.append(f"no animation for view '{v}': {why}")
+        report(f"warning: {notes[-1]}")
     results = []
     for k, snap in enumerate(plan.snapshots):
         tag = f"[{k + 1}/{len(plan.snapshots)} snapshot {snap.index} t={snap.time:g}]"
         results.append(_run_snapshot(plan, snap, cache, out, ctx, lambda m, t=tag: report(
             f"{t} {m}"), traced.get(snap.index)))
     total = time.perf_counter() - t0
+    n_anim = sum(len(r.animations) for r in results)
     report(f"scene done: {len(results)} snapshot(s), "
-           f"{sum(len(r.images) for r in results)} image(s) in {total:.2f} s")
+           f"{sum(len(r.images) for r in results)} image(s)"
+           + (f", {n_anim} animation(s)" if n_anim else "") + f" in {total:.2f} s")
     return RunResult(plan, results, notes, total)
 
 
@@ -128,9 +137,15 @@ def _trace_on_cluster(plan: Plan, cache, workers: int, notes: list, report) -> d
 
 
 def _check_patterns(scene: Scene, plan: Plan) -> None:
+    anim = scene.outputs.animation
+    if anim is not None and anim.lower().endswith(".mp4") and not importlib.util.find_spec(
+            "imageio"):  # refuse before tracing, not after
+        raise ValueError(f"{scene.path} [outputs]: animation = {anim!r}: MP4 needs the optional "
+                         "imageio and imageio-ffmpeg (pip install 'flowkit[video]'); or write "
+                         ".gif / .png")
     if len(plan.snapshots) < 2:
         return
-    for key in ("lines", "images"):
+    for key in ("lines", "images", "animation"):
         pat = getattr(scene.outputs, key)
         if pat is not None and not placeholders(pat) & {"snapshot", "time"}:
             raise ValueError(f"{scene.path} [outputs]: {key} = {pat!r} would be overwritten by "
@@ -263,4 +278,37 @@ def _render(plan: Plan, lines: Lines, res: SnapshotResult, out: Path, fmt: dict,
                 path = _out(out, scene.outputs.images.format(view=v.name, style=v.style, **fmt))
                 res.images[v.name] = save_png(img, path)
                 st.msg = f"{path} ({v.size[0]}x{v.size[1]})"
+        if scene.outputs.animation is not None:
+            _animate(scene, r, res, out, fmt, report)
         res.uploaded = tuple(r.uploaded_attributes())
+
+
+def _animate(scene: Scene, r, res: SnapshotResult, out: Path, fmt: dict, report):
+    """One animation per view whose style moves (the others were noted when the run began)."""
+    from ..render.animate import render_frames, write_animation
+
+    o = scene.outputs
+    still = still_views(scene)
+    for v in scene.views.values():
+        if v.name in still:
+            continue
+        name = f"animate {v.name}"
+        with _Stage(res, name, report) as st:
+            path = _out(out, o.animation.format(view=v.name, style=v.style, **fmt))
+            frames = render_frames(r, scene.styles[v.style], o.frames, v.size, v.camera)
+            res.animations[v.name] = write_animation(frames, path, o.frames, o.fps,
+                                                     progress=_ticker(name, o.frames, report))
+            shown = path if len(res.animations[v.name]) == 1 else (
+                f"{res.animations[v.name][0]} .. {res.animations[v.name][-1].name}")
+            st.msg = f"{shown} ({o.frames} frames at {o.fps:g} fps, {v.size[0]}x{v.size[1]})"
+
+
+def _ticker(name: str, n: int, report):
+    """A progress callable for ``n`` frames: a few lines (every quarter), not one per frame."""
+    step, done = max(1, n // 4), itertools.count(1)
+
+    def tick():
+        k = next(done)
+        if k % step == 0 and k < n:
+            report(f"{name}: frame {k}/{n}")
+    return tick
