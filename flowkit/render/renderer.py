@@ -37,7 +37,9 @@ from .simplify import (
     arc_parameter,
     attribute_importance,
     attribute_tolerances,
+    displacement_importance,
     geometry_importance,
+    placed_attributes,
     runs,
     select,
 )
@@ -96,6 +98,7 @@ class LineRenderer:
             raise ValueError(f"{lines.n_points} points: too many to draw in one call")
         self._xyz = np.ascontiguousarray(lines.points, np.float64)
         self._importance: dict[str | None, np.ndarray] = {}  # None: geometry
+        self._placement: dict[tuple, np.ndarray] = {}  # geometry with placed attributes
         self._arc: np.ndarray | None = None
         self._frame_key = None
         self._ranges: dict[str, float] = {}
@@ -200,6 +203,21 @@ class LineRenderer:
             self._importance[name] = imp
         return imp
 
+    def _placement_of(self, names: tuple[str, ...]) -> np.ndarray:
+        """World-unit importance of the geometry and the displacement of the attributes that
+        place shapes and patterns: one threshold (pixels at the vertex's depth) serves both."""
+        imp = self._placement.get(names)
+        if imp is None:
+            imp = self._importance_of(None)
+            for name in names:
+                if self._arc is None:
+                    self._arc = arc_parameter(self._xyz, self._starts, self._stops)
+                v = np.asarray(self._attr_values(name), np.float64)
+                imp = np.maximum(imp, displacement_importance(v, self._arc, self._starts,
+                                                              self._stops))
+            self._placement[names] = imp
+        return imp
+
     def _data_range(self, name: str) -> float:
         r = self._ranges.get(name)
         if r is None:
@@ -211,6 +229,7 @@ class LineRenderer:
     def _select(self, style: Style, cam, size) -> None:
         """Upload this frame's kept vertices (ids + strip indices), unless unchanged."""
         tol = self.tolerance * style.supersample  # output pixels -> render pixels
+        placed = ()
         if tol <= 0:  # every vertex: the same for every camera
             key, tols = ("every vertex",), {}
         else:
@@ -223,15 +242,16 @@ class LineRenderer:
             px_min = max(float(np.min(cam.px_scale[0] * -z + cam.px_scale[1])), 1e-30)
             unit = 1.0 if style.units == "pixels" else style.supersample * px_min  # per output px
             tols = attribute_tolerances(style, self.tolerance, ranges, unit)
+            placed = tuple(sorted(placed_attributes(style)))
             key = (cam.view.tobytes(), cam.proj.tobytes(), tuple(size), tol,
-                   tuple(sorted(tols.items())))
+                   tuple(sorted(tols.items())), placed)
         if key == self._frame_key:
             return
         extra = np.zeros(0, bool)
         for name, t in tols.items():
             keep = self._importance_of(name) > 0.5 * t
             extra = keep if extra.size == 0 else extra | keep
-        imp = self._importance_of(None) if tol > 0 else np.zeros(0, np.float32)
+        imp = self._placement_of(placed) if tol > 0 else np.zeros(0, np.float32)
         ids, idx = select(self._xyz, imp, cam.view, cam.px_scale, tol, extra, self._starts,
                           self._stops)
         for buf, data in ((self._ids, ids), (self._ibo, idx)):

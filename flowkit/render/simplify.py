@@ -7,10 +7,15 @@ units) from the vertex to the chord that replaces it when the DP recursion picks
 parent's importance so that importance only falls down the hierarchy; ``importance > tol`` then
 selects exactly the vertices DP keeps at tolerance ``tol``.  Attributes get their own importance:
 the deviation from linear interpolation along the arc length (what the rasterizer does between
-two kept vertices).  Per frame a vertex is kept when its geometric importance exceeds half the
-pixel tolerance (converted to world units at the vertex's depth) or an attribute's importance
-exceeds half that attribute's tolerance; the ends of every run are always kept.  Halves because
-the kept set is the union of several DP sets, which at most doubles each one's error.
+two kept vertices).  Attributes that only place shapes and patterns along the line get a
+displacement importance instead (world units, like the geometry's): how far along the arc the
+linear interpolant puts the vertex's value -- a pattern feature -- from where it belongs; it is
+0 wherever the attribute is linear in arc length (arc_length itself needs no vertices of its own)
+and inf at a local extremum (a value the interpolant would never reach).  Per frame a vertex is
+kept when its geometric or displacement importance exceeds half the pixel tolerance (converted
+to world units at the vertex's depth) or an attribute's importance exceeds half that attribute's
+tolerance; the ends of every run are always kept.  Halves because the kept set is the union of
+several DP sets, which at most doubles each one's error.
 
 Runs are the pieces of a line with consecutive finite points (>= 2 of them); the renderer draws
 one triangle strip per run.
@@ -27,6 +32,7 @@ from ..lines import Lines
 from .style import ColorMap, Style, WidthMap
 
 RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
+GEOMETRY, VALUE, DISPLACEMENT = 0, 1, 2  # importance kinds
 MAX_SPAN = 4096  # longer pieces are split at their middle (which shares its parent's importance)
 # unscanned, so the DP cost stays O(n log n + n * MAX_SPAN) whatever the curve
 
@@ -53,14 +59,22 @@ def arc_parameter(points: np.ndarray, starts: np.ndarray, stops: np.ndarray) -> 
 def geometry_importance(points, starts, stops) -> np.ndarray:
     """float32 DP importance (world units) of every point; inf at run ends, 0 outside runs."""
     p = np.ascontiguousarray(points, np.float64)
-    return _importance(p, np.zeros(0), np.zeros(0), starts, stops, True)
+    return _importance(p, np.zeros(0), np.zeros(0), starts, stops, GEOMETRY)
 
 
 def attribute_importance(values, arc, starts, stops) -> np.ndarray:
     """float32 DP importance (attribute units) of a scalar attribute along the arc parameter;
     inf where a value is not finite."""
     v = np.ascontiguousarray(values, np.float64)
-    return _importance(np.zeros((0, 3)), v, arc, starts, stops, False)
+    return _importance(np.zeros((0, 3)), v, arc, starts, stops, VALUE)
+
+
+def displacement_importance(values, arc, starts, stops) -> np.ndarray:
+    """float32 DP importance (world units along the arc) of an attribute that places shapes or
+    patterns: the distance between where the linear interpolant reaches the vertex's value and
+    the vertex; inf at local extrema and where a value is not finite."""
+    v = np.ascontiguousarray(values, np.float64)
+    return _importance(np.zeros((0, 3)), v, arc, starts, stops, DISPLACEMENT)
 
 
 @numba.njit(cache=True)
@@ -74,22 +88,30 @@ def _arc(p, starts, stops):
 
 
 @numba.njit(cache=True)
-def _deviation(p, v, s, i, j, m, geometric):
-    if geometric:  # distance from point m to the segment i-j
+def _deviation(p, v, s, i, j, m, kind):
+    if kind == GEOMETRY:  # distance from point m to the segment i-j
         dx, dy, dz = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1], p[j, 2] - p[i, 2]
         mx, my, mz = p[m, 0] - p[i, 0], p[m, 1] - p[i, 1], p[m, 2] - p[i, 2]
         dd = dx * dx + dy * dy + dz * dz
         t = 0.0 if dd == 0.0 else min(max((mx * dx + my * dy + mz * dz) / dd, 0.0), 1.0)
         ex, ey, ez = mx - t * dx, my - t * dy, mz - t * dz
         return math.sqrt(ex * ex + ey * ey + ez * ez)
-    # attribute: deviation from linear interpolation along the arc between i and j
     t = (s[m] - s[i]) / (s[j] - s[i]) if s[j] > s[i] else (m - i) / (j - i)
-    return abs(v[m] - v[i] - t * (v[j] - v[i]))
+    if kind == VALUE:  # deviation from linear interpolation along the arc between i and j
+        return abs(v[m] - v[i] - t * (v[j] - v[i]))
+    # displacement: the interpolant reaches v[m] at fraction u of i..j instead of t
+    dv = v[j] - v[i]
+    if dv == 0.0:
+        return 0.0 if v[m] == v[i] else np.inf
+    u = (v[m] - v[i]) / dv
+    if not 0.0 <= u <= 1.0:  # outside the chord's values (an extremum): keep
+        return np.inf
+    return abs(u - t) * (s[j] - s[i])
 
 
 @numba.njit(cache=True, parallel=True)
-def _importance(p, v, s, starts, stops, geometric):
-    n = p.shape[0] if geometric else v.shape[0]
+def _importance(p, v, s, starts, stops, kind):
+    n = p.shape[0] if kind == GEOMETRY else v.shape[0]
     imp = np.zeros(n, np.float32)
     for r in numba.prange(starts.size):  # runs are independent
         a, b = starts[r], stops[r] - 1
@@ -110,7 +132,7 @@ def _importance(p, v, s, starts, stops, geometric):
             else:
                 best, k = -1.0, i + 1
                 for m in range(i + 1, j):
-                    d = _deviation(p, v, s, i, j, m, geometric)
+                    d = _deviation(p, v, s, i, j, m, kind)
                     if not d <= 1e300:  # NaN or inf (non-finite attribute): always keep
                         d = np.inf
                     if d > best:
@@ -177,9 +199,10 @@ def attribute_tolerances(style: Style, tol_px: float, ranges: dict[str, float],
                          unit: float = 1.0) -> dict[str, float]:
     """Per attribute the error the picture tolerates, for a pixel tolerance ``tol_px``: half a
     colormap step per 0.25 px, widths off by ``tol_px`` pixels (``unit``: style width units per
-    pixel), shapes/patterns shifted by a 1/512 period per 0.25 px, transfer switches by 1/1024 of
-    the data range per 0.25 px.  ``ranges``: each attribute's data range (max - min).
-    Attributes with no known use get 0 (every vertex where they are not linear is kept)."""
+    pixel), transfer switches by 1/1024 of the data range per 0.25 px.  ``ranges``: each
+    attribute's data range (max - min).  Attributes that only place shapes and patterns are left
+    out (``placed_attributes``); others with no known use get 0 (every vertex where they are not
+    linear is kept)."""
     f = tol_px / 0.25
     tol = {name: 0.0 for name in style.attributes()}
     need: dict[str, float] = {}
@@ -197,11 +220,24 @@ def attribute_tolerances(style: Style, tol_px: float, ranges: dict[str, float],
                 w = b.width
                 dw = abs(w.max - w.min) * style.scale
                 add(w.attribute, (w.range[1] - w.range[0]) * tol_px * unit / dw if dw > 0 else math.inf)
-            for sp in (b.shape, b.pattern):
-                if sp is not None:
-                    add(sp.attribute, sp.length * f / 512)
     if style.transfer is not None:
         a = style.transfer.attribute
         add(a, ranges.get(a, 0.0) * f / 1024)
     tol.update({k: v for k, v in need.items() if k in tol})
+    for name in placed_attributes(style):  # placement only: displacement importance instead
+        if name not in need:
+            del tol[name]
     return tol
+
+
+def placed_attributes(style: Style) -> list[str]:
+    """Attributes that place shapes and patterns along the drawn lines.  Their interpolation
+    error shows as a shift along the line, so they are kept by displacement importance at the
+    geometry's pixel tolerance (see the module docstring)."""
+    out = []
+    for n in style.used_styles():
+        for b in style.styles[n].bands:
+            for sp in (b.shape, b.pattern):
+                if sp is not None and sp.attribute not in out:
+                    out.append(sp.attribute)
+    return out
