@@ -4,10 +4,12 @@ import numpy as np
 import pytest
 
 from flowkit import trace
+from flowkit.cli import main
 from flowkit.fields.analytic import ABCFlow, LinearField, SolidBodyRotation
 from flowkit.integrate import kernel as K
 from flowkit.integrate import rosenbrock as R
 from flowkit.integrate.methods import get_method
+from flowkit.integrate.options import OptionsError
 from flowkit.integrate.reasons import Reason
 from flowkit.integrate.rosenbrock import trace_rosenbrock
 from flowkit.integrate.stiffness import (
@@ -186,8 +188,7 @@ def test_rosenbrock_terminations():
     L = trace_rosenbrock(fld, SEEDS[:1], rtol=1e-6, atol=1e-6)
     assert L.line_data["reason"][0] == Reason.NAN_FIELD
     assert np.all(np.isfinite(L.points)) and L.points[-1, 2] <= 5.0 + 1e-9
-    with pytest.raises(ValueError, match="direction"):
-        trace_rosenbrock(STIFF_GRID, SEEDS, direction="both")
+
 
 
 @pytest.mark.parametrize("direction", ["forward", "both"])
@@ -209,3 +210,62 @@ def test_kernel_flags_the_stiff_field_and_not_abc_or_rotation(aware, direction):
     # only dopri5 has the stage pair: other methods report 0, never a guess
     L = trace(STIFF_GRID, SEEDS, method="cashkarp", rtol=1e-6, atol=1e-6, max_time=0.2)
     assert np.all(L.line_data["stiff"] == 0)
+
+
+def test_ros34pw2_through_trace_both_directions_and_its_limits():
+    rot = SolidBodyRotation()
+    fld = rot.to_field(9)
+    seeds = np.array([[0.5, 0.0, 0.1], [0.0, -0.3, 0.2]])
+    L = trace(fld, seeds, method="ros34pw2", rtol=1e-7, atol=1e-7, max_time=2.0, direction="both",
+              attributes=("time",))
+    assert L.attrs["method"] == "ros34pw2"
+    assert np.all(L.line_data["reason"] == Reason.MAX_TIME)
+    assert np.all(L.line_data["reason_backward"] == Reason.MAX_TIME)
+    first, last = L.points[L.offsets[:-1]], L.points[L.offsets[1:] - 1]
+    np.testing.assert_allclose(first, rot.trajectory(seeds, -2.0), atol=2e-5)
+    np.testing.assert_allclose(last, rot.trajectory(seeds, 2.0), atol=2e-5)
+    t = L.point_data["time"]  # ordered through the seed, negative before it
+    assert np.all(np.diff(t)[np.diff(L.line_index()) == 0] > 0)
+    np.testing.assert_allclose(t[L.offsets[:-1]], -2.0)
+    np.testing.assert_allclose(t[L.offsets[1:] - 1], 2.0)
+    # the wrapper is trace(method="ros34pw2")
+    one = trace_rosenbrock(fld, seeds, rtol=1e-7, atol=1e-7, max_time=2.0)
+    assert one.equals(trace(fld, seeds, method="ros34pw2", rtol=1e-7, atol=1e-7, max_time=2.0))
+    with pytest.raises(OptionsError, match="ros34pw2.*spacing"):
+        trace(fld, seeds, method="ros34pw2", spacing=0.1)
+    with pytest.raises(OptionsError, match="numba backend only"):
+        trace(fld, seeds, method="ros34pw2", backend="opencl")
+
+
+def test_auto_switches_stiff_lines_to_ros34pw2():
+    T = 5.0
+    exact = STIFF.trajectory(SEEDS, T)
+    dp = trace(STIFF_GRID, SEEDS, rtol=1e-6, atol=1e-6, max_time=T)
+    L = trace(STIFF_GRID, SEEDS, method="auto", rtol=1e-6, atol=1e-6, max_time=T)
+    assert np.all(L.line_data["stiff"] == 1) and np.all(L.line_data["ros34pw2"] == 1)
+    np.testing.assert_array_equal(L.line_data["seed_id"], np.arange(len(SEEDS)))
+    assert np.all(L.line_data["reason"] == Reason.MAX_TIME)
+    assert np.abs(L.points[L.offsets[1:] - 1] - exact).max() < 20e-6
+    assert np.all(10 * L.line_data["n_accepted"] <= dp.line_data["n_accepted"])
+    # a mixed batch: the stiff seed switches, the mild ones (rotation) are dopri5's lines
+    rot = SolidBodyRotation().to_field(9)
+    seeds = [[0.5, 0.0, 0.1], [0.2, -0.3, 0.0]]
+    a = trace(rot, seeds, method="auto", max_time=3.0, direction="both")
+    b = trace(rot, seeds, max_time=3.0, direction="both")
+    assert np.all(a.line_data["ros34pw2"] == 0)
+    np.testing.assert_array_equal(a.points, b.points)
+
+
+def test_cli_method_ros34pw2(tmp_path):
+    from flowkit import read_lines
+
+    f = STIFF_GRID
+    np.savez(tmp_path / "f.npz", x=f.grid.x, y=f.grid.y, z=f.grid.z, U=f.vector)
+    out = tmp_path / "lines.h5"
+    for method in ("ros34pw2", "auto"):
+        assert main(["trace", str(tmp_path / "f.npz"), "-o", str(out), "--seeds",
+                     "line:0.5,-0.3,0.0:0.9,0.2,1.0:3", "--method", method, "--max-time", "5",
+                     "--quiet"]) == 0
+        back = read_lines(out)
+        assert back.attrs["method"] == method and np.all(back.line_data["stiff"] == 1)
+        assert np.all(back.line_data["n_accepted"] < 200)  # dopri5 needs ~15000 here

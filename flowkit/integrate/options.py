@@ -10,6 +10,8 @@ import numpy as np
 from .methods import get_method
 
 DIRECTIONS = ("forward", "backward", "both")
+# methods with their own driver, not a tableau for the explicit kernel (see trace._trace_batch)
+STIFF_METHODS = ("ros34pw2", "auto")
 PARAMETERS = ("time", "arc_length")
 
 
@@ -21,7 +23,9 @@ class OptionsError(ValueError):
 class TraceOptions:
     """Options of :func:`flowkit.trace`.  ``None`` means "derived from the field" (see below).
 
-    method       dopri5 (default), cashkarp, bs23, dop853 (adaptive); rk4, euler (fixed step)
+    method       dopri5 (default), cashkarp, bs23, dop853 (adaptive); rk4, euler (fixed step);
+                 ros34pw2 (L-stable Rosenbrock for stiff fields, numba, vertices at its steps);
+                 auto (dopri5; lines it flags stiff are traced again with ros34pw2)
     rtol, atol   relative/absolute tolerance, a number or one per component (x, y, z); the error
                  of a step is the RMS over components of err_i / (atol_i + rtol_i * |y_i|).
                  atol None: rtol times the largest extent of the grid.
@@ -69,8 +73,14 @@ class TraceOptions:
     progress: bool | None = None
 
     def __post_init__(self):
-        m = get_method(self.method)
-        object.__setattr__(self, "method", m.name)
+        name = str(self.method).lower()
+        if name in STIFF_METHODS:
+            object.__setattr__(self, "method", name)
+            if self.spacing is not None or self.count is not None:
+                raise OptionsError(f"method {name}: options spacing and count (resampling) are "
+                                   "offered by the explicit methods only; ros34pw2 emits its steps")
+        else:
+            object.__setattr__(self, "method", get_method(self.method).name)
         object.__setattr__(self, "rtol", _tol("rtol", self.rtol, positive=True))
         if self.atol is not None:
             object.__setattr__(self, "atol", _tol("atol", self.atol, positive=False))
@@ -120,6 +130,11 @@ class TraceOptions:
 
     @property
     def method_obj(self):
+        """The explicit method's tableau; ros34pw2 and auto have none (only ``flowkit.trace``
+        and ``trace_to_file`` run them), so a caller that needs one gets a clear error."""
+        if self.method in STIFF_METHODS:
+            raise OptionsError(f"method {self.method} is offered by flowkit.trace/trace_to_file "
+                               "only; choose an explicit method (dopri5, cashkarp, bs23, dop853)")
         return get_method(self.method)
 
 

@@ -34,10 +34,9 @@ from numba import njit, prange
 
 from ..fields import Field
 from ..lines import Lines
-from . import attributes as _attributes
 from . import kernel as K
 from .kernel import _dense, _f, _move, _norm3, _put, _relocate, _root
-from .options import OptionsError, TraceOptions
+from .options import TraceOptions
 from .stiffness import HLAMBDA_STIFF, cell_jacobian, spectral_radius_bound, stiff_update
 
 NAME = "ros34pw2"
@@ -378,54 +377,45 @@ def _advance(seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
               si, out_p, out_par, out_n)
 
 
-def trace_rosenbrock(field: Field, seeds, options: TraceOptions | None = None, **kw) -> Lines:
-    """Streamlines by ROS34PW2 (cell-aware, exact cell Jacobian).  Takes the options of
-    ``flowkit.trace`` (``method`` is ignored; ``direction`` forward or backward; vertices at
-    accepted steps: ``spacing``/``count`` resampling is not offered here).  line_data adds
-    ``stiff`` (int8, Hairer–Wanner flag) and ``stiff_steps`` (int32)."""
-    from . import trace as T
-
-    kw.pop("method", None)
-    opts = T._options(options, kw).replace(method="dopri5")
-    if opts.direction == "both":
-        raise OptionsError("method ros34pw2: direction must be forward or backward, got 'both'")
-    if opts.spacing is not None or opts.count is not None:
-        raise OptionsError("method ros34pw2: vertices are the accepted steps; spacing/count "
-                           "resampling is only offered by the explicit methods")
-    seeds = T._seeds(seeds)
-    setup = T._Setup(field, opts)
+def run_tasks(setup, seeds, dirs, max_steps):
+    """Trace the half-lines (``seeds`` (n, 3), ``dirs`` ±1) with the options of ``setup``
+    (``trace._Setup``); returns (points, t, s, owner, columns) with vertices grouped by task in
+    order, as the explicit kernel's passes do, and per-task line_data columns."""
     n = seeds.shape[0]
-    dirs = np.full(n, -1.0 if opts.direction == "backward" else 1.0)
     si = np.zeros((n, 6), np.int64)
-    cap = int(min(opts.max_steps + 2, 1024))
+    cap = int(min(max_steps + 2, 1024))
     todo = np.arange(n)
-    pts_of = [None] * n
-    par_of = [None] * n
+    pts_of = [np.zeros((0, 3))] * n
+    par_of = [np.zeros((0, 2))] * n
     while todo.size:
-        sub = seeds[todo]
         out_p = np.empty((todo.size, cap, 3))
         out_par = np.empty((todo.size, cap, 2))
         out_n = np.zeros(todo.size, np.int64)
         ssi = np.zeros((todo.size, 6), np.int64)
-        _advance(sub, dirs[todo], *setup.grid, setup.vec, ALPHA, GAMMAS, B, BHAT, setup.fo,
-                 setup.io, ssi, out_p, out_par, out_n)
+        _advance(seeds[todo], dirs[todo], *setup.grid, setup.vec, ALPHA, GAMMAS, B, BHAT,
+                 setup.fo, setup.io, ssi, out_p, out_par, out_n)
         done = ssi[:, 0] != _OVERFLOW
         for j in np.flatnonzero(done):
             pts_of[todo[j]] = out_p[j, :out_n[j]]
             par_of[todo[j]] = out_par[j, :out_n[j]]
         si[todo[done]] = ssi[done]
         todo = todo[~done]
-        cap = min(4 * cap, opts.max_steps + 2)  # a line has at most max_steps + 1 vertices
+        cap = min(4 * cap, max_steps + 2)  # a line has at most max_steps + 1 vertices
     counts = np.array([p.shape[0] for p in pts_of], np.int64)
     pts = np.concatenate(pts_of) if n else np.zeros((0, 3))
     par = np.concatenate(par_of) if n else np.zeros((0, 2))
-    offsets = np.concatenate([[0], np.cumsum(counts)])
-    ld = {"seed_id": np.arange(n, dtype=np.int64), "reason": si[:, 1].astype(np.int8),
-          "n_accepted": si[:, 2].astype(np.int32), "n_rejected": si[:, 3].astype(np.int32),
-          "stiff": (si[:, 4] >= (1 << 16)).astype(np.int8), "stiff_steps": si[:, 5].astype(np.int32)}
-    seed_of = np.repeat(seeds, counts, axis=0)
-    pd = (_attributes.compute(field, opts.attributes, pts, par[:, 0], par[:, 1], seed_of)
-          if opts.attributes else {})
-    attrs = T._attrs(field, opts)
-    attrs["method"] = NAME
-    return Lines(pts, offsets, pd, ld, attrs)
+    owner = np.repeat(np.arange(n), counts)
+    cols = {"reason": si[:, 1].astype(np.int8), "n_accepted": si[:, 2].astype(np.int32),
+            "n_rejected": si[:, 3].astype(np.int32),
+            "stiff": ((si[:, 4] >> 16) & 1).astype(np.int8), "stiff_steps": si[:, 5].astype(np.int32)}
+    return pts, par[:, 0].copy(), par[:, 1].copy(), owner, cols
+
+
+def trace_rosenbrock(field: Field, seeds, options: TraceOptions | None = None, **kw) -> Lines:
+    """``flowkit.trace(..., method="ros34pw2")``: streamlines by ROS34PW2 (cell-aware, exact
+    cell Jacobian), vertices at the accepted steps.  line_data adds ``stiff`` (int8,
+    Hairer–Wanner flag) and ``stiff_steps`` (int32)."""
+    from .trace import trace
+
+    kw["method"] = NAME
+    return trace(field, seeds, options, **kw)

@@ -18,7 +18,8 @@ from ..fields import Field
 from ..lines import Lines
 from . import attributes as _attributes
 from . import kernel as K
-from .options import TraceOptions
+from .methods import get_method
+from .options import STIFF_METHODS, OptionsError, TraceOptions
 from .reasons import REASON_NAMES
 
 BUFFER_BYTES = 32 << 20  # output buffer of one pass: (tasks, budget) vertices of 40 bytes
@@ -131,8 +132,11 @@ class _Setup:
     def __init__(self, field: Field, opts: TraceOptions, backend="numba"):
         _attributes.check(field, opts.attributes)
         self.advance = _backend(backend)
+        if opts.method == "ros34pw2" and backend != "numba":
+            raise OptionsError(f"method ros34pw2 runs on the numba backend only, got backend "
+                               f"{backend!r} (method auto re-traces its stiff lines on numba)")
         g = field.grid
-        m = opts.method_obj
+        m = get_method("dopri5") if opts.method in STIFF_METHODS else opts.method_obj
         if m.p.shape[1] > K.QMAX:
             raise ValueError(f"method {m.name}: dense output degree {m.p.shape[1]} > {K.QMAX}")
         self.method = m
@@ -241,6 +245,14 @@ def _batches(field, seeds, opts, batch_seeds=BATCH_SEEDS, backend="numba"):
 def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> Lines:
     n = seeds.shape[0]
     both = opts.direction == "both"
+    if opts.method == "ros34pw2":
+        from .rosenbrock import run_tasks
+
+        tseeds = np.repeat(seeds, 2, axis=0) if both else seeds
+        dirs = (np.tile(np.array([-1.0, 1.0]), n) if both
+                else np.full(n, -1.0 if opts.direction == "backward" else 1.0))
+        pts, t, s, owner, cols = run_tasks(setup, tseeds, dirs, opts.max_steps)
+        return _assemble(field, opts, seeds, id0, pts, t, s, owner, cols)
     if both:  # task 2i: backward half, 2i + 1: forward half
         tseeds = np.repeat(seeds, 2, axis=0)
         dirs = np.tile(np.array([-1.0, 1.0]), n)
@@ -274,12 +286,42 @@ def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> L
             spacing[:] = np.where(length > 0, length / (opts.count - 1), 1.0)
 
     pts, t, s, owner, si = setup.run(tseeds, dirs, emit, spacing, phase, opts.budget)
+    cols = {"reason": si[:, K.I_REASON].astype(np.int8),
+            "n_accepted": si[:, K.I_NACC].astype(np.int32),
+            "n_rejected": si[:, K.I_NREJ].astype(np.int32),
+            "stiff": ((si[:, K.I_STIFF] >> 16) & 1).astype(np.int8)}  # stiffness.is_stiff's bit
+    lines = _assemble(field, opts, seeds, id0, pts, t, s, owner, cols)
+    if opts.method == "auto":
+        lines = _retrace_stiff(field, setup, seeds, opts, lines)
+    return lines
+
+
+def _retrace_stiff(field, setup, seeds, opts, lines: Lines) -> Lines:
+    """method auto: the lines dopri5 flagged stiff, traced again from their seeds by ros34pw2
+    (n_accepted/n_rejected then count ros34pw2's steps); line_data ``ros34pw2`` marks them."""
+    stiff = lines.line_data["stiff"] != 0
+    lines.line_data["ros34pw2"] = np.zeros(len(lines), np.int8)
+    if not stiff.any():
+        return lines
+    ros = _trace_batch(field, setup, seeds[stiff], opts.replace(method="ros34pw2"), 0)
+    ros.line_data["seed_id"] = lines.line_data["seed_id"][stiff]
+    ros.line_data["stiff"] = np.ones(len(ros), np.int8)  # as dopri5 found it
+    ros.line_data["ros34pw2"] = np.ones(len(ros), np.int8)
+    del ros.line_data["stiff_steps"]
+    both = Lines.concatenate([lines[~stiff], ros])
+    return both[np.argsort(both.line_data["seed_id"], kind="stable")]
+
+
+def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols) -> Lines:
+    """Lines from the vertices of the tasks (grouped by task, in order along each) and per-task
+    line_data columns; direction both joins task 2i (backward) and 2i + 1 (forward) through the
+    seed: reason is the forward half's (``reason_backward`` the other), stiff either half's,
+    counts summed."""
+    n = seeds.shape[0]
+    both = opts.direction == "both"
+    nt = 2 * n if both else n
     counts = np.bincount(owner, minlength=nt)
     rank = np.arange(owner.size) - (np.cumsum(counts) - counts)[owner]
-    reason = si[:, K.I_REASON].astype(np.int8)
-    nacc = si[:, K.I_NACC].astype(np.int32)
-    nrej = si[:, K.I_NREJ].astype(np.int32)
-    stiff = ((si[:, K.I_STIFF] >> 16) & 1).astype(np.int8)  # stiffness.is_stiff's flag bit
     ld = {"seed_id": np.arange(id0, id0 + n, dtype=np.int64)}
     if both:
         line = owner // 2
@@ -288,13 +330,17 @@ def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> L
         order = np.lexsort((np.where(fwd == 1, rank, -rank)[keep], fwd[keep], line[keep]))
         idx = np.flatnonzero(keep)[order]
         line_of = line[idx]
-        ld.update(reason=reason[1::2], n_accepted=nacc[0::2] + nacc[1::2],
-                  n_rejected=nrej[0::2] + nrej[1::2], reason_backward=reason[0::2],
-                  stiff=np.maximum(stiff[0::2], stiff[1::2]))
+        for name, c in cols.items():
+            if name == "reason":
+                ld.update(reason=c[1::2], reason_backward=c[0::2])
+            elif name == "stiff":
+                ld[name] = np.maximum(c[0::2], c[1::2])
+            else:
+                ld[name] = c[0::2] + c[1::2]
         pts, t, s = pts[idx], t[idx], s[idx]
     else:
         line_of = owner
-        ld.update(reason=reason, n_accepted=nacc, n_rejected=nrej, stiff=stiff)
+        ld.update(cols)
     offsets = np.concatenate([[0], np.cumsum(np.bincount(line_of, minlength=n))])
     seed_of = seeds[line_of]
     pd = _attributes.compute(field, opts.attributes, pts, t, s, seed_of) if opts.attributes else {}
