@@ -59,19 +59,30 @@ bool style{{ s }}(float b, float fw, out vec4 color, out float depth) {
 {% endfor %}
 {% set last = style | length - 1 %}
     if (b > e{{ last }}{% if smooth_edge %} + 0.5 * fw{% endif %}) return false;
+{% if smooth_bands and style | length > 1 %}
+    // every band's colour once, at the fragment's lateral position clamped to the band (a
+    // software rasterizer runs both sides of a branch, so "only near a boundary" saves nothing)
+{% for band in style %}
+{% set i = loop.index0 %}
+{% set lo = "0.0" if loop.first else "e%d" % (i - 1) %}
+    vec4 c{{ i }} = band{{ band.index }}_color(clamp((b - {{ lo }}) / max(e{{ i }} - {{ lo }}, 1e-6), 0.0, 1.0), e{{ i }} - {{ lo }});
+{% endfor %}
+{% endif %}
 {% for band in style %}
 {% set i = loop.index0 %}
 {% set lo = "0.0" if loop.first else "e%d" % (i - 1) %}
     {{ "} else " if not loop.first else "" }}if ({{ "true" if loop.last else "b <= e%d" % i }}) {
+{% if smooth_bands and style | length > 1 %}
+        color = c{{ i }};
+{% else %}
         color = band{{ band.index }}_color((b - {{ lo }}) / max(e{{ i }} - {{ lo }}, 1e-6), e{{ i }} - {{ lo }});
+{% endif %}
 {% if smooth_bands and not loop.first %}
-{% set plo = "0.0" if i == 1 else "e%d" % (i - 2) %}
-        // within half a pixel of a band boundary: blend with the neighbour (only there, so
-        // its colour -- texture, pattern -- is evaluated for few fragments)
-        if (b < e{{ i - 1 }} + 0.5 * fw) color = mix(color, band{{ style[i - 1].index }}_color(1.0, e{{ i - 1 }} - {{ plo }}), clamp((e{{ i - 1 }} - b) / fw + 0.5, 0.0, 1.0));
+        // within half a pixel of a band boundary: blend with the neighbour
+        if (b < e{{ i - 1 }} + 0.5 * fw) color = mix(color, c{{ i - 1 }}, clamp((e{{ i - 1 }} - b) / fw + 0.5, 0.0, 1.0));
 {% endif %}
 {% if smooth_bands and not loop.last %}
-        if (b > e{{ i }} - 0.5 * fw) color = mix(color, band{{ style[i + 1].index }}_color(0.0, e{{ i + 1 }} - e{{ i }}), clamp((b - e{{ i }}) / fw + 0.5, 0.0, 1.0));
+        if (b > e{{ i }} - 0.5 * fw) color = mix(color, c{{ i + 1 }}, clamp((b - e{{ i }}) / fw + 0.5, 0.0, 1.0));
 {% endif %}
         depth = {{ "u_depth%d" % band.index if depth_offset else "0.0" }};
 {% endfor %}
@@ -95,7 +106,14 @@ void main() {
     vec4 color;
     float depth;
 {% if transfer %}
-    // line style transfer function: the attribute's range picks the whole line style
+    // line style transfer function: the attribute's range picks the whole line style.  Each
+    // drawn style is evaluated once, before the ranges (which a software rasterizer would
+    // otherwise evaluate in every branch, blends included)
+{% for style in styles %}
+    vec4 sc{{ loop.index0 }};
+    float sd{{ loop.index0 }};
+    bool si{{ loop.index0 }} = style{{ loop.index0 }}(b, fw, sc{{ loop.index0 }}, sd{{ loop.index0 }});
+{% endfor %}
     float tv = g_attr{{ transfer_attr }};
 {% for r in transfer %}
 {% set i = loop.index0 %}
@@ -103,15 +121,13 @@ void main() {
 {% if r.style < 0 %}
         discard;  // a range without a style is not drawn
 {% else %}
-        if (!style{{ r.style }}(b, fw, color, depth)) discard;
+        if (!si{{ r.style }}) discard;
+        color = sc{{ r.style }};
+        depth = sd{{ r.style }};
 {% for nb, t in [(r.prev, "1.0 - smoothstep(u_tf%d.x - u_tfblend, u_tf%d.x + u_tfblend, tv)" % (i, i)), (r.next, "smoothstep(u_tf%d.y - u_tfblend, u_tf%d.y + u_tfblend, tv)" % (i, i))] %}
 {% if nb >= 0 %}
-        {   // blend the colour towards the adjacent range's style near the common bound
-            float t = {{ t }};
-            vec4 c2;
-            float d2;
-            if (t > 0.0 && style{{ nb }}(b, fw, c2, d2)) color = mix(color, c2, t);
-        }
+        // blend the colour towards the adjacent range's style near the common bound
+        if (si{{ nb }}) color = mix(color, sc{{ nb }}, {{ t }});
 {% endif %}
 {% endfor %}
 {% endif %}
