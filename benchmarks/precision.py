@@ -37,7 +37,6 @@ import peers
 from flowkit import trace
 from flowkit.fields.analytic import ABCFlow, LinearField, SolidBodyRotation
 from flowkit.integrate.reasons import Reason
-from flowkit.integrate.rosenbrock import trace_rosenbrock
 
 METHODS = ("dopri5", "cashkarp", "bs23", "dop853")
 ROS = "ros34pw2"
@@ -156,17 +155,16 @@ def _row(problem, tool, method, backend, aware, tol, ends, ok, wall, steps):
             "wall_s": wall, "steps": float(steps)}
 
 
-def flowkit_rows(problem, tols, backends, repeat):
+def flowkit_rows(problem, tols, backends, repeat, methods=METHODS + (ROS,), ros_problems=None):
     kw = dict(parameter=problem.parameter, max_steps=10**6, **problem.limit_kw)
     for backend in backends:
-        for method in METHODS + (ROS,):
-            if method == ROS and backend != "numba":
+        for method in methods:
+            if method == ROS and (backend != "numba"
+                                  or (ros_problems is not None and problem.name not in ros_problems)):
                 continue
             for aware in ((True,) if method == ROS else (True, False)):
                 def run(tol, n=None, method=method, aware=aware, backend=backend):
                     s = problem.seeds if n is None else problem.seeds[:n]
-                    if method == ROS:
-                        return trace_rosenbrock(problem.field, s, rtol=tol, atol=tol, **kw)
                     return trace(problem.field, s, method=method, rtol=tol, atol=tol,
                                  cell_aware=aware, backend=backend, **kw)
                 run(1e-3, 2)  # compile (numba cache / OpenCL program) outside the timing
@@ -330,20 +328,33 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, help="seeds per problem")
     ap.add_argument("--processes", type=int, default=2, help="processes for the references")
     ap.add_argument("--problems", help="comma-separated subset, e.g. 'rotation,stiff linear'")
+    ap.add_argument("--tols", help="comma-separated tolerances (default 1e-2 ... 1e-10, every decade)")
+    ap.add_argument("--methods", help=f"comma-separated flowkit methods (default {','.join(METHODS)},{ROS})")
+    ap.add_argument("--ros-problems", help=f"problems {ROS} runs on (default: all)")
+    ap.add_argument("--abc-grids", default="16,32", help="ABC nodes per period (default 16,32)")
+    ap.add_argument("--peers", choices=("all", "scipy", "none"), default="all",
+                    help="scipy: solve_ivp on the analytic problems only (cheap); none: as --no-peers")
+    ap.add_argument("--repeat", type=int, help="timing repeats, fastest kept (default 2; quick 1)")
     a = ap.parse_args(argv)
     quick = a.quick
     tols = TOLS_QUICK if quick else TOLS_FULL
+    if a.tols:
+        tols = tuple(float(t) for t in a.tols.split(","))
+    methods = tuple(m.strip() for m in a.methods.split(",")) if a.methods else METHODS + (ROS,)
+    ros_problems = None if not a.ros_problems else {w.strip() for w in a.ros_problems.split(",")}
+    grids = [int(g) for g in a.abc_grids.split(",") if g.strip()]
+    peers_mode = "none" if a.no_peers else a.peers
     n_seeds = a.seeds or (8 if quick else 32)
-    repeat = 1 if quick else 2
+    repeat = a.repeat or (1 if quick else 2)
     want = None if not a.problems else {w.strip() for w in a.problems.split(",")}
     backends = _backends(a.backends, quick)
     print(f"machine: {C.machine()}\nbackends: {', '.join(backends)}", flush=True)
     t_start = time.perf_counter()
     rng = np.random.default_rng(20261122)
     problems = [p for p in analytic_problems(n_seeds, rng) if want is None or p.name in want]
-    if want is None or "ABC 16/period" in want:
+    if 16 in grids and (want is None or "ABC 16/period" in want):
         problems.append(abc_problem(16, 20 if quick else 200, a.processes))
-    if not quick and (want is None or "ABC 32/period" in want):
+    if not quick and 32 in grids and (want is None or "ABC 32/period" in want):
         problems.append(abc_problem(32, 100, a.processes))
     if not quick and (want is None or "heated room" in want):
         problems.append(hotroom_problem(n_seeds, a.processes))
@@ -352,11 +363,11 @@ def main(argv=None) -> int:
     rows = []
     for p in problems:
         print(f"{p.name}: {p.note}, {len(p.seeds)} seeds", flush=True)
-        gen = [flowkit_rows(p, tols, backends, repeat)]
-        if not a.no_peers:
+        gen = [flowkit_rows(p, tols, backends, repeat, methods, ros_problems)]
+        if peers_mode == "all" or (peers_mode == "scipy" and p.analytic is not None):
             gen.append(scipy_rows(p, tols, 2 if quick else 8))
-            if not quick and p.name.startswith("ABC"):
-                gen.append(grid_peer_rows(p))
+        if peers_mode == "all" and not quick and p.name.startswith("ABC"):
+            gen.append(grid_peer_rows(p))
         for g in gen:
             for r in g:
                 rows.append(r)
