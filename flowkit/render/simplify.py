@@ -33,6 +33,7 @@ from .style import ColorMap, Style, WidthMap
 
 RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
 GEOMETRY, VALUE, DISPLACEMENT = 0, 1, 2  # importance kinds
+OUTSIDE = 1e200  # displacement at an extremum: overflows to inf in the float32 importance
 MAX_SPAN = 4096  # longer pieces are split at their middle (which shares its parent's importance)
 # unscanned, so the DP cost stays O(n log n + n * MAX_SPAN) whatever the curve
 
@@ -100,12 +101,15 @@ def _deviation(p, v, s, i, j, m, kind):
     if kind == VALUE:  # deviation from linear interpolation along the arc between i and j
         return abs(v[m] - v[i] - t * (v[j] - v[i]))
     # displacement: the interpolant reaches v[m] at fraction u of i..j instead of t
+    # A value outside the chord's (an extremum) must be kept: beyond every finite importance
+    # (inf once stored as float32), ordered by how far out it lies so that DP splits at the
+    # extremum itself and keeps only the extrema, not every point around them
     dv = v[j] - v[i]
     if dv == 0.0:
-        return 0.0 if v[m] == v[i] else np.inf
+        return 0.0 if v[m] == v[i] else OUTSIDE * (1.0 + min(abs(v[m] - v[i]), 1e50))
     u = (v[m] - v[i]) / dv
-    if not 0.0 <= u <= 1.0:  # outside the chord's values (an extremum): keep
-        return np.inf
+    if not 0.0 <= u <= 1.0:
+        return OUTSIDE * (1.0 + min(max(-u, u - 1.0), 1e50))
     return abs(u - t) * (s[j] - s[i])
 
 
