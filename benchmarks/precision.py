@@ -385,7 +385,10 @@ def main(argv=None) -> int:
     md_path = a.out / f"precision{tag}.md"
     with C.atomic_path(md_path) as tmp, open(tmp, "w") as fh:
         fh.write("\n".join(text) + "\n")
-    png = plot(rows, problems, interp, a.plot or a.out / f"work_precision{tag}.png")
+    try:
+        png = plot(rows, problems, interp, a.plot or a.out / f"work_precision{tag}.png")
+    except ModuleNotFoundError as e:  # the plot needs the bench extra; the tables do not
+        png = f"not drawn ({e.name} missing: pip install 'flowkit[bench]')"
     print("\n" + summary(rows))
     print(f"\ninterpolation error: {interp}")
     print(f"CSV: {csv_path}\nMarkdown: {md_path}\nplot: {png}")
