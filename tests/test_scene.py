@@ -427,7 +427,9 @@ def test_animation_output_writes_moving_frames_after_the_stills(tmp_path, field_
     write_scene(tmp_path, MOVING + PLAIN, TWO_VIEWS,
                 outputs=ANIMATION.replace(".gif", ".png").replace("4", "3"))
     assert main(["scene", str(path)]) == 0
-    assert "animate moving: " in capsys.readouterr().err and len(spy["trace"]) == 1
+    cap = capsys.readouterr()
+    assert "animate moving: " in cap.err and len(spy["trace"]) == 1
+    assert f"wrote {tmp_path / 'moving_0_0002.png'}" in cap.out.splitlines()
     names = sorted(p.name for p in tmp_path.glob("moving_0_*.png"))
     assert names == ["moving_0_0000.png", "moving_0_0001.png", "moving_0_0002.png"]
     first = np.asarray(Image.open(tmp_path / "moving_0_0000.png"))

@@ -54,6 +54,7 @@ def run(args) -> int:
     res = run_scene(scene, snapshot=snap, out_dir=args.out, cache_dir=args.cache_dir,
                     use_cache=False if args.no_cache else None, workers=args.workers)
     for r in res.snapshots:
-        for path in ([r.lines_path] if r.lines_path else []) + list(r.images.values()):
+        anims = [p for paths in r.animations.values() for p in paths]
+        for path in ([r.lines_path] if r.lines_path else []) + list(r.images.values()) + anims:
             print(f"wrote {path}")
     return 0
