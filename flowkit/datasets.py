@@ -10,15 +10,20 @@ from .fields.readers import load_field, load_series
 _HERE = Path(__file__).resolve().parent
 
 
-def hotroom_path() -> Path:
-    """datasets/hotroom.h5 of the source tree (or flowkit/_data/ when installed from a wheel)."""
-    for p in (_HERE.parent / "datasets" / "hotroom.h5", _HERE / "_data" / "hotroom.h5"):
+def bundled(source: str, hint: str) -> Path:
+    """A file shipped with flowkit: ``source`` (relative to the source tree's root) in a checkout,
+    or its name under flowkit/_data/ in an installed wheel (pyproject's force-include)."""
+    src = _HERE.parent / source
+    for p in (src, _HERE / "_data" / src.name):
         if p.is_file():
             return p
-    raise FileNotFoundError(
-        f"{_HERE.parent / 'datasets' / 'hotroom.h5'}: built-in heated-room data not found; "
-        "regenerate it with `python datasets/make_hotroom.py`"
-    )
+    raise FileNotFoundError(f"{src}: {hint}")
+
+
+def hotroom_path() -> Path:
+    """datasets/hotroom.h5: the built-in heated-room data."""
+    return bundled("datasets/hotroom.h5", "built-in heated-room data not found; regenerate it "
+                   "with `python datasets/make_hotroom.py`")
 
 
 def hotroom_times() -> list[float]:

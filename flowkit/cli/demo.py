@@ -8,19 +8,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-_HERE = Path(__file__).resolve().parent.parent  # the flowkit package
+from ..datasets import bundled
 
 
 def scene_path() -> Path:
-    """examples/hotroom_scene.toml of the source tree (or flowkit/_data/ in a built wheel, where
-    the packaging step copies it with the data and the style it references)."""
-    for p in (_HERE.parent / "examples" / "hotroom_scene.toml", _HERE / "_data" / "hotroom_scene.toml"):
-        if p.is_file():
-            return p
-    raise FileNotFoundError(
-        f"{_HERE.parent / 'examples' / 'hotroom_scene.toml'}: the demo scene is not here; "
-        "flowkit demo runs from a source checkout (pip install -e .)"
-    )
+    """examples/hotroom_scene.toml (the style it references travels with it in a wheel)."""
+    return bundled("examples/hotroom_scene.toml", "the demo scene is not here; flowkit demo "
+                   "runs from a source checkout or an installed wheel")
 
 
 def register(subparsers) -> None:

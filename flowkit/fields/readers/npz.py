@@ -23,22 +23,23 @@ from ._common import ReaderError, existing, make_field
 RESERVED = ("x", "y", "z", "time", "period")
 
 
-def _load(path):
+def _guarded(read, path, what, pickled, fix=""):
+    """read() with NumPy's pickle refusal and truncation turned into ReaderErrors about ``what``."""
     try:
-        return np.load(path, allow_pickle=False)
+        return read()
     except ValueError as e:
         if "pickle" in str(e).lower():
-            raise ReaderError(
-                f"{path}: holds a pickled object array; refused (flowkit never unpickles files). "
-                "Save plain numeric arrays instead"
-            ) from None
-        raise ReaderError(
-            f"{path}: not a readable NumPy file (truncated or corrupt): {e}"
-        ) from None
+            raise ReaderError(f"{path}: {pickled}; refused (flowkit never unpickles files){fix}"
+                              ) from None
+        raise ReaderError(f"{path}: {what} (truncated or corrupt): {e}") from None
     except (OSError, EOFError, zipfile.BadZipFile) as e:
-        raise ReaderError(
-            f"{path}: not a readable NumPy file (truncated or corrupt): {e}"
-        ) from None
+        raise ReaderError(f"{path}: {what} (truncated or corrupt): {e}") from None
+
+
+def _load(path):
+    return _guarded(lambda: np.load(path, allow_pickle=False), path,
+                    "not a readable NumPy file",
+                    "holds a pickled object array", ". Save plain numeric arrays instead")
 
 
 def read_npz(path, vector="U", periodic=(False, False, False), period=None):
@@ -46,21 +47,8 @@ def read_npz(path, vector="U", periodic=(False, False, False), period=None):
     arrays = {}
     with _load(path) as z:
         for name in z.files:
-            try:
-                arrays[name] = z[name]
-            except ValueError as e:
-                if "pickle" in str(e).lower():
-                    raise ReaderError(
-                        f"{path}: array '{name}' holds pickled objects; refused "
-                        "(flowkit never unpickles files)"
-                    ) from None
-                raise ReaderError(
-                    f"{path}: array '{name}' is unreadable (truncated or corrupt): {e}"
-                ) from None
-            except (OSError, EOFError, zipfile.BadZipFile) as e:
-                raise ReaderError(
-                    f"{path}: array '{name}' is unreadable (truncated or corrupt): {e}"
-                ) from None
+            arrays[name] = _guarded(lambda n=name: z[n], path, f"array '{name}' is unreadable",
+                                    f"array '{name}' holds pickled objects")
     missing = [c for c in "xyz" if c not in arrays]
     if missing:
         raise ReaderError(
