@@ -10,7 +10,7 @@ $(STAMP): pyproject.toml
 	bash scripts/system-deps.sh
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[opencl,io,dask,dev]'
+	$(PY) -m pip install --quiet -e '.[opencl,io,dask,dev,view]'
 	touch $(STAMP)
 
 install: $(STAMP)

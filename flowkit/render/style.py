@@ -580,3 +580,73 @@ def load_style(path: str | Path) -> Style:
     except tomllib.TOMLDecodeError as e:
         raise StyleError(f"{path}: not valid TOML: {e}") from None
     return style_from_dict(data, where=str(path))
+
+
+# -- model -> TOML (the viewer's "save style") ---------------------------------------------------
+def _color_out(c):
+    if isinstance(c, ColorMap):
+        return {"cmap": c.cmap, "attribute": c.attribute, "range": list(c.range)}
+    if all(round(v * 255) / 255 == v for v in c):  # exactly a hex colour: write it as one
+        return "#" + "".join(f"{round(v * 255):02x}" for v in (c if c[3] != 1.0 else c[:3]))
+    return list(c)
+
+
+def _band_out(b: Band) -> dict:
+    w = b.width
+    out = {"color": _color_out(b.color),
+           "width": {"attribute": w.attribute, "range": list(w.range), "min": w.min,
+                     "max": w.max} if isinstance(w, WidthMap) else w,
+           "depth_offset": b.depth_offset}
+    if b.shape is not None:
+        sh = b.shape
+        out["shape"] = {"attribute": sh.attribute, "length": sh.length}
+        if sh.name == "custom":
+            out["shape"]["points"] = [list(p) for p in sh.points]
+        else:
+            out["shape"]["name"] = sh.name
+    if b.pattern is not None:
+        p = b.pattern
+        out["pattern"] = {"color": _color_out(p.color), "attribute": p.attribute,
+                          "length": p.length, "slope": p.slope, "curve": p.curve,
+                          "fraction": p.fraction}
+    return out
+
+
+def style_to_dict(style: Style) -> dict:
+    """The TOML tables of ``style``: ``style_from_dict(style_to_dict(s)) == s``."""
+    out = {"version": style.version, "units": style.units, "scale": style.scale,
+           "background": "transparent" if style.background is None
+           else _color_out(style.background),
+           "antialias": style.antialias, "samples": style.samples,
+           "supersample": style.supersample, "phase": style.phase}
+    cam = {k: list(v) if isinstance(v, tuple) else v
+           for k, v in vars(style.camera).items() if v is not None}
+    out["camera"] = cam
+    if list(style.styles) == ["default"] and style.transfer is None:
+        out["bands"] = [_band_out(b) for b in style.line_style.bands]
+    else:
+        out["styles"] = {n: {"bands": [_band_out(b) for b in ls.bands]}
+                         for n, ls in style.styles.items()}
+    if style.transfer is not None:
+        tf = style.transfer
+        out["transfer"] = {"attribute": tf.attribute, "blend": tf.blend, "ranges": [
+            {"range": list(r.range), **({"style": r.style} if r.style is not None else {})}
+            for r in tf.ranges]}
+    return out
+
+
+def dump_style(data: Style | dict) -> str:
+    """TOML text of a Style (or of already-built style tables)."""
+    import tomli_w
+
+    return tomli_w.dumps(style_to_dict(data) if isinstance(data, Style) else data)
+
+
+def save_style(data: Style | dict, path: str | Path) -> Path:
+    """Write a style as TOML atomically (temp file beside it + rename)."""
+    from ..io.atomic import atomic_path
+
+    text = dump_style(data)
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(text, encoding="utf-8")
+    return Path(path)
