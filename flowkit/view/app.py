@@ -25,7 +25,6 @@ import moderngl  # isort: skip
 from ..lines import Lines
 from ..render.context import create_context
 from ..render.renderer import LineRenderer, save_png
-from ..render.shader_build import shader_flags
 from ..render.style import Style, StyleError, save_style, style_from_dict
 from . import orbit
 from .edit import colormapped, get_at, replace_at, with_color_attribute
@@ -114,7 +113,9 @@ class Viewer:
 
     # -- style ------------------------------------------------------------------------------------
     def _flags(self, style: Style):
-        return shader_flags(style, msaa=self.renderer.samples_for(style) > 1)
+        """The template flags the renderer draws ``style`` with (compiled if new)."""
+        with self.ctx:
+            return self.renderer.prepare(style)[0]
 
     def _report(self, message: str) -> None:
         if message != self.error:
@@ -142,18 +143,16 @@ class Viewer:
         if problem is not None:
             self._report(problem)
             return None
-        self.error = None
         if style == self.style:
+            self.error = None
             return "unchanged"
-        flags = self._flags(style)
+        try:  # the renderer's own flags; a new set compiles here: a failure keeps the old style
+            flags = self._flags(style)
+        except moderngl.Error as e:
+            self._report(f"shader build failed: {e}")
+            return None
+        self.error = None
         kind = "uniforms" if flags == self.flags else "recompile"
-        if kind == "recompile":
-            try:
-                with self.ctx:
-                    self.renderer.prepare(style)  # compile now: a failure keeps the old style
-            except moderngl.Error as e:
-                self._report(f"shader build failed: {e}")
-                return None
         if style.camera != self.style.camera:  # the file moved the camera: follow it
             self.camera = style.camera
         self.style, self.flags = style, flags

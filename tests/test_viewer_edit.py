@@ -1,0 +1,195 @@
+"""The viewer's parts that need no window: the style TOML writer (exact round trip), the panel's
+parameter list and edits, the mouse camera control, the file watch, the CLI's errors."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flowkit.render import Camera
+from flowkit.render.style import (
+    Band,
+    ColorMap,
+    LineStyle,
+    Pattern,
+    Shape,
+    Style,
+    StyleError,
+    Transfer,
+    TransferRange,
+    WidthMap,
+    dump_style,
+    load_style,
+    save_style,
+    style_from_dict,
+    style_to_dict,
+)
+from flowkit.view import orbit
+from flowkit.view.edit import get_at, params, replace_at, with_color_attribute
+from flowkit.view.watch import FileWatch
+
+ROOT = Path(__file__).resolve().parent.parent
+GRAY = ColorMap("gray", "speed", (0.0, 1.0))
+
+RICH = Style(
+    styles={
+        "fast": LineStyle((
+            Band(GRAY, WidthMap("speed", (0.0, 2.0), 1.0, 4.0), 0.0,
+                 Shape("arrow", "time", 0.3), Pattern((0.1, 0.2, 0.30000000000000004, 1.0),
+                                                       "arc_length", 0.7, 0.5, 2.0, 0.25)),
+            Band((1.0, 1.0, 1.0, 0.5), 1.5, 0.05, Shape("custom", "arc_length", 2.0,
+                                                        ((0.0, 0.0), (0.5, 1.0), (1.0, 0.25)))),
+        )),
+        "slow": LineStyle((Band((0.2, 0.4, 0.6, 1.0), 2.0,
+                                pattern=Pattern(ColorMap("viridis", "T", (-1.0, 1e-9)))),)),
+    },
+    units="world", scale=0.5, background=None, antialias="smooth", samples=8, supersample=2,
+    camera=Camera(azimuth=12.5, elevation=-3.0, distance=4.0, target=(0.1, 0.2, 0.3),
+                  up=(0.0, 1.0, 0.0), fov=45.0, projection="orthographic", zoom=2.0),
+    transfer=Transfer("speed", (TransferRange((-math.inf, 0.5), "slow"),
+                                TransferRange((0.5, 1.0), None),
+                                TransferRange((1.0, math.inf), "fast")), blend=0.1),
+    phase=0.125,
+)
+
+
+@pytest.mark.parametrize("style", [RICH, *sorted((ROOT / "examples/styles").glob("*.toml"))],
+                         ids=lambda s: s.name if isinstance(s, Path) else "rich")
+def test_toml_writer_round_trips_exactly(style, tmp_path):
+    style = load_style(style) if isinstance(style, Path) else style
+    out = save_style(style, tmp_path / "s.toml")
+    assert load_style(out) == style
+    assert style_from_dict(tomllib.loads(dump_style(style))) == style
+    assert not [p for p in tmp_path.iterdir() if p.name != "s.toml"]  # atomic: no temp left
+
+
+def test_toml_writer_forms():
+    d = style_to_dict(RICH)
+    assert d["background"] == "transparent" and "bands" not in d
+    assert d["styles"]["slow"]["bands"][0]["color"] == "#336699"  # exact hex stays hex
+    assert d["styles"]["fast"]["bands"][1]["color"] == [1.0, 1.0, 1.0, 0.5]
+    assert d["transfer"]["ranges"][1] == {"range": [0.5, 1.0]}  # no style: not drawn
+    assert "inf" in dump_style(RICH)
+    plain = Style(styles={"default": LineStyle((Band((1.0, 0.0, 0.0, 1.0), 2.0),))})
+    d = style_to_dict(plain)
+    assert d["bands"][0]["color"] == "#ff0000" and "distance" not in d["camera"]
+
+
+def test_params_cover_the_style():
+    ps = {p.path: p for p in params(RICH)}
+    fast, slow = ("styles", "fast", "bands"), ("styles", "slow", "bands")
+    expected = {
+        ("scale",): "float", ("phase",): "float",
+        fast + (0, "color", "cmap"): "cmap", fast + (0, "color", "range"): "range",
+        fast + (0, "color", "attribute"): "attribute",
+        fast + (0, "width", "range"): "range", fast + (0, "width", "min"): "float",
+        fast + (0, "width", "max"): "float", fast + (0, "depth_offset"): "float",
+        fast + (0, "shape", "name"): "shape", fast + (0, "shape", "length"): "float",
+        fast + (0, "pattern", "length"): "float", fast + (0, "pattern", "slope"): "float",
+        fast + (0, "pattern", "curve"): "float", fast + (0, "pattern", "fraction"): "float",
+        fast + (0, "pattern", "color"): "color",
+        fast + (1, "color"): "color", fast + (1, "width"): "float",
+        fast + (1, "depth_offset"): "float", fast + (1, "shape", "length"): "float",
+        slow + (0, "pattern", "color", "cmap"): "cmap",
+        slow + (0, "pattern", "color", "range"): "range",
+        ("transfer", "ranges", 0, "range"): "range", ("transfer", "ranges", 2, "range"): "range",
+        ("transfer", "blend"): "float",
+    }
+    for path, kind in expected.items():
+        assert ps[path].kind == kind, path
+        assert ps[path].value == get_at(RICH, path)
+    assert fast + (1, "shape", "name") not in ps  # a custom shape has no name to pick
+    assert ("background",) not in ps  # transparent: nothing to edit
+
+
+def test_replace_at_rebuilds_and_validates():
+    s = replace_at(RICH, ("styles", "fast", "bands", 1, "depth_offset"), 0.5)
+    assert s.styles["fast"].bands[1].depth_offset == 0.5
+    assert RICH.styles["fast"].bands[1].depth_offset == 0.05  # frozen: a new Style
+    assert s.styles["slow"] is RICH.styles["slow"]
+    with pytest.raises(StyleError, match="fraction"):
+        replace_at(RICH, ("styles", "fast", "bands", 0, "pattern", "fraction"), 2.0)
+    with pytest.raises(StyleError, match="cmap"):
+        replace_at(RICH, ("styles", "fast", "bands", 0, "color", "cmap"), "no-such-map")
+
+
+def test_colour_attribute_swaps_every_colour_map():
+    s = with_color_attribute(RICH, "T", (2.0, 3.0))
+    assert s.styles["fast"].bands[0].color == ColorMap("gray", "T", (2.0, 3.0))
+    assert s.styles["slow"].bands[0].pattern.color == ColorMap("viridis", "T", (2.0, 3.0))
+    assert s.styles["fast"].bands[1].color == RICH.styles["fast"].bands[1].color
+    assert s.transfer == RICH.transfer  # the transfer function keeps its attribute
+
+
+BOUNDS = np.array([[-1.0, 1.0], [-2.0, 2.0], [0.0, 0.5]])
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic"])
+def test_pinning_keeps_the_view(projection):
+    cam = Camera(azimuth=30, elevation=20, projection=projection)
+    a, b = cam.setup(BOUNDS, 400, 300), orbit.pinned(cam, BOUNDS, (400, 300)).setup(BOUNDS, 400, 300)
+    np.testing.assert_allclose(b.view, a.view, atol=1e-12)
+    np.testing.assert_allclose(b.proj, a.proj, rtol=1e-12)
+
+
+def test_orbit_zoom_pan():
+    cam = Camera(azimuth=170, elevation=80)
+    c = orbit.orbit(cam, -50, 50)  # +20 degrees azimuth wraps, elevation stops short of the pole
+    assert c.azimuth == pytest.approx(-170) and c.elevation == orbit.MAX_ELEVATION
+    size = (400, 300)
+    z = orbit.zoom(cam, 3, BOUNDS, size)
+    fit = orbit.pinned(cam, BOUNDS, size).distance
+    assert z.distance == pytest.approx(fit * 0.9 ** 3)
+    assert orbit.zoom(Camera(projection="orthographic"), -1, BOUNDS, size).zoom == pytest.approx(0.9)
+    # pan: the target's image moves with the mouse, in pixels
+    p = orbit.pan(cam, 30, -20, BOUNDS, size)
+    s = p.setup(BOUNDS, *size)
+    clip = s.proj @ s.view @ np.r_[BOUNDS.mean(axis=1), 1.0]
+    px = ((clip[0] / clip[3] + 1) / 2 * size[0], (1 - clip[1] / clip[3]) / 2 * size[1])
+    assert px == pytest.approx((200 + 30, 150 - 20), abs=1e-6)
+    o = orbit.pan(Camera(projection="orthographic"), 30, -20, BOUNDS, size)
+    so, s0 = o.setup(BOUNDS, *size), Camera(projection="orthographic").setup(BOUNDS, *size)
+    assert so.px_scale[1] == pytest.approx(s0.px_scale[1])  # orthographic pan keeps the scale
+
+
+def test_file_watch(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text("a")
+    w = FileWatch(f)
+    assert not w.changed()
+    tmp = tmp_path / "t"
+    tmp.write_text("a")
+    os.replace(tmp, f)  # an editor's save: same size, new file
+    assert w.changed() and not w.changed()
+    f.unlink()
+    assert not w.changed()  # gone (mid-save): nothing to report yet
+    f.write_text("bb")
+    assert w.changed()
+
+
+def test_cli_view_errors(tmp_path):
+    """Without a display the CLI says what to do in one line; bad files are named."""
+    from flowkit.io.lines_h5 import write_lines
+    from flowkit.lines import Lines
+
+    lines = tmp_path / "l.h5"
+    write_lines(Lines(np.zeros((2, 3)) + [[0, 0, 0], [1, 0, 0]], [0, 2]), lines)
+    style = tmp_path / "s.toml"
+    style.write_text('version = 1\n[[bands]]\ncolor = "#000000"\n')
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    run = [sys.executable, "-m", "flowkit", "view", str(lines), "--style"]
+    r = subprocess.run(run + [str(style)], env=env, capture_output=True, text=True, timeout=120,
+                       check=False)
+    assert r.returncode == 2 and "display" in r.stderr and "xvfb-run" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    style.write_text('version = 1\n[[bands]]\nwidth = "wide"\n')
+    r = subprocess.run(run + [str(style)], env=env, capture_output=True, text=True, timeout=120,
+                       check=False)
+    assert r.returncode == 2 and str(style) in r.stderr and "width" in r.stderr
