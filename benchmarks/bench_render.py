@@ -9,8 +9,12 @@ the same way.  Each figure is the best of ``--frames`` frames after 2 warm-up fr
 mean: the machine is shared), wall time and process CPU time (all threads); ratios compare
 figures taken in this run.
 
+``strips``: the same halo frames with the strips built in the vertex shader (the default) and
+in a lines_adjacency geometry shader, two renderers drawn alternately frame by frame (both see
+the same load), with and without antialiasing.
+
     .venv/bin/python benchmarks/bench_render.py [--lines 2500 --vertices 1000 --frames 5]
-    [--only default,msaa,none,full,vtk]
+    [--only default,msaa,none,full,strips,vtk]
 """
 
 from __future__ import annotations
@@ -76,6 +80,26 @@ def time_flowkit(lines: Lines, size, frames: int, antialias: str, **renderer_arg
     return wall, cpu, img, info
 
 
+def time_strips(lines: Lines, size, frames: int, antialias: str, tolerance=None) -> dict:
+    """{stage: (best wall s, best CPU s, drawn points)}: vertex- and geometry-shader strips,
+    frames interleaved."""
+    style = halo_style(antialias)
+    out = {}
+    with (LineRenderer(lines, tolerance=tolerance) as rv,
+          LineRenderer(lines, ctx=rv.ctx, tolerance=tolerance, strips="geometry") as rg):
+        times = {"vertex": ([], []), "geometry": ([], [])}
+        for k in range(frames + 2):
+            for stage, r in (("vertex", rv), ("geometry", rg)):
+                t0, c0 = time.perf_counter(), time.process_time()
+                r.draw(style, size, camera(k))
+                r.read()
+                if k >= 2:
+                    times[stage][0].append(time.perf_counter() - t0)
+                    times[stage][1].append(time.process_time() - c0)
+                out[stage] = r.n_drawn
+        return {st: (min(w), min(c), out[st]) for st, (w, c) in times.items()}
+
+
 def time_vtk(lines: Lines, size, frames: int):
     import vtk
     from vtk.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray, vtk_to_numpy
@@ -136,8 +160,8 @@ def main() -> None:
     ap.add_argument("--vertices", type=int, default=1000)
     ap.add_argument("--frames", type=int, default=5)
     ap.add_argument("--size", default="1920x1080")
-    ap.add_argument("--only", default="default,msaa,none,full,vtk",
-                    help="comma-separated runs: default, msaa, none, full, vtk")
+    ap.add_argument("--only", default="default,msaa,none,full,strips,vtk",
+                    help="comma-separated runs: default, msaa, none, full, strips, vtk")
     a = ap.parse_args()
     runs = a.only.split(",")
     size = tuple(int(v) for v in a.size.split("x"))
@@ -164,6 +188,17 @@ def main() -> None:
             "analytic edges" if aa != "none" else "none")
         label = f"{label} [{aa_name}; {fi['kept']:,} vertices drawn]"
         rows[key] = (label, wall, cpu, ink(img))
+    if "strips" in runs:
+        # defaults (level of detail), no AA, and every vertex (tolerance 0, as on a GPU)
+        for aa, tol in (("msaa", None), ("none", None), ("msaa", 0.0)):
+            t = time_strips(lines, size, a.frames, aa, tol)
+            name = f"{aa}{'' if tol is None else ', tol 0'}"
+            for stage, (wall, cpu, kept) in t.items():
+                print(f"strips [{name}] {stage:8} {wall * 1e3:8.1f} ms wall {cpu * 1e3:8.1f} ms "
+                      f"CPU  {kept:>9,} points drawn")
+            (wv, cv, _), (wg, cg, _) = t["vertex"], t["geometry"]
+            print(f"strips [{name}] geometry / vertex: wall {wg / wv:.2f}, CPU {cg / cv:.2f} "
+                  f"(interleaved frames, load {os.getloadavg()[0]:.2f})")
     if "vtk" in runs:
         try:
             wall, cpu, img, rw_name, caps = time_vtk(lines, size, a.frames)

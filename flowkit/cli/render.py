@@ -43,6 +43,9 @@ def register(subparsers) -> None:
     p.add_argument("--supersample", type=int, help="render k times larger and average (print)")
     p.add_argument("--context", choices=["egl", "standalone"], default="egl",
                    help="OpenGL context: headless EGL (default) or the platform default")
+    p.add_argument("--strips", choices=["vertex", "geometry"], default="vertex",
+                   help="shader stage that builds the line strips: vertex (default, faster on "
+                   "software rasterizers) or a lines_adjacency geometry shader; same picture")
     anim = p.add_argument_group("animation (moves shapes and colour patterns along the lines)")
     anim.add_argument("--frames", type=int, help="render N frames, the patterns advancing one "
                       "period in all: -o out.png writes out_0000.png..., .gif / .mp4 one file")
@@ -79,7 +82,7 @@ def run(args) -> int:
     ctx = default_context() if args.context == "egl" else create_context(args.context)
     if args.frames is not None:
         return _animate(args, style, size, camera, ctx)
-    image = render_file(args.lines, style, size, camera, ctx)
+    image = render_file(args.lines, style, size, camera, ctx, strips=args.strips)
     path = save_png(image, args.output)
     print(f"wrote {path} ({size[0]}x{size[1]})")
     return 0
@@ -104,7 +107,7 @@ def _animate(args, style, size, camera, ctx) -> int:
         raise CLIError(f"--frames with {args.style}: the style has no band 'shape' or 'pattern' "
                        "to move along the lines")
     lines = read_lines(args.lines, attributes=style.attributes())
-    with LineRenderer(lines, ctx) as r, tqdm(total=n, unit="frame", desc="render") as bar:
+    with LineRenderer(lines, ctx, strips=args.strips) as r, tqdm(total=n, unit="frame", desc="render") as bar:
         paths = write_animation(render_frames(r, style, n, size, camera), args.output, n,
                                 args.fps, progress=bar.update)
     where = paths[0] if len(paths) == 1 else f"{paths[0]} ... {paths[-1].name}"

@@ -4,7 +4,8 @@ Geometry goes to the GPU once per ``LineRenderer``: float32 positions in a textu
 float32 texture per attribute a style reads (uploaded the first time a style reads it).  Per
 frame (when the camera, size or style tolerances change) ``simplify.select`` picks the vertices
 that matter at this zoom and uploads their ids (a small int buffer) and the triangle-strip
-indices (two strip vertices per kept point, restart between runs).  A render binds the program
+indices (two strip vertices per kept point, restart between runs; or, when a geometry shader
+builds the strips, lines_adjacency indices of the same points).  A render binds the program
 for the style's flags (cached), sets uniforms and textures, and draws into a (multisampled)
 framebuffer that is resolved and read back.
 """
@@ -28,12 +29,14 @@ from .shader_build import (
     TEX_WIDTH,
     ShaderFlags,
     band_uniforms,
+    check_strip_stage,
     is_texture,
     program_cache,
     shader_flags,
     style_texture,
 )
 from .simplify import (
+    adjacency,
     arc_parameter,
     attribute_importance,
     attribute_tolerances,
@@ -75,14 +78,19 @@ class LineRenderer:
     """Draws one set of lines with any number of styles, cameras and sizes."""
 
     def __init__(self, lines: Lines, ctx: moderngl.Context | None = None,
-                 tolerance: float | None = None, msaa: bool | None = None):
+                 tolerance: float | None = None, msaa: bool | None = None,
+                 strips: str = "vertex"):
         """``tolerance``: per frame, skip the vertices whose removal moves the drawn line by less
         than this many output pixels and its attributes by less than a visible step (see
         ``simplify``); 0 draws every vertex (nothing is recomputed when the camera moves).
         ``msaa``: whether a style's ``antialias = "msaa"`` gets a multisampled target.  None
         (defaults) choose by rasterizer: on a software one (llvmpipe), where every tiny triangle
         costs a setup and MSAA's clear+resolve costs more than a frame, tolerance 0.25 and
-        analytic edge smoothing; on a GPU, every vertex and MSAA."""
+        analytic edge smoothing; on a GPU, every vertex and MSAA.
+        ``strips``: the shader stage that builds the view-oriented strips, "vertex" (vertex
+        pulling, the default: as fast or faster on llvmpipe) or "geometry" (a lines_adjacency geometry
+        shader); both draw the same strips with the same style code."""
+        self.strips = check_strip_stage(strips)
         self.ctx = ctx or default_context()
         software = is_software(self.ctx)
         if tolerance is None:
@@ -171,11 +179,14 @@ class LineRenderer:
         vao = self._vaos.get(prog.glo)
         if vao is None:
             # the only vertex attributes are point ids: a_prev/a_cur/a_next read the same buffer
-            # two entries apart (every id is stored twice, once per side of the strip)
+            # two entries apart (every id is stored twice, once per side of the strip); the
+            # geometry path's a_cur reads ids[j] for lines_adjacency index j (simplify.adjacency)
             vao = self.ctx.vertex_array(prog, [], self._ibo, index_element_size=4)
+            first = 1 if self.strips == "vertex" else 0
             for k, name in enumerate(("a_prev", "a_cur", "a_next")):
                 if name in prog:
-                    vao.bind(prog[name].location, "i", self._ids, "1i", offset=8 * k, stride=4)
+                    vao.bind(prog[name].location, "i", self._ids, "1i", offset=8 * (k - 1 + first),
+                             stride=4)
             self._vaos[prog.glo] = vao
         return vao
 
@@ -254,12 +265,14 @@ class LineRenderer:
         imp = self._placement_of(placed) if tol > 0 else np.zeros(0, np.float32)
         ids, idx = select(self._xyz, imp, cam.view, cam.px_scale, tol, extra, self._starts,
                           self._stops)
+        self.n_drawn = (idx.size - self._starts.size) // 2  # points drawn this frame
+        if self.strips == "geometry":
+            idx = adjacency(idx)
         for buf, data in ((self._ids, ids), (self._ibo, idx)):
             if buf.size < data.nbytes:
                 buf.orphan(data.nbytes)
             buf.write(data)
         self.n_indices = idx.size
-        self.n_drawn = (idx.size - self._starts.size) // 2  # points drawn this frame
         self._frame_key = key
 
     # -- framebuffers ---------------------------------------------------------------------------
@@ -279,7 +292,7 @@ class LineRenderer:
     # -- drawing --------------------------------------------------------------------------------
     def prepare(self, style: Style) -> tuple[ShaderFlags, moderngl.Program]:
         samples = self.samples_for(style)
-        flags = shader_flags(style, msaa=samples > 1)
+        flags = shader_flags(style, msaa=samples > 1, strip_stage=self.strips)
         return flags, self.programs.get(flags)
 
     def samples_for(self, style: Style) -> int:
@@ -362,7 +375,8 @@ class LineRenderer:
                         u.write(value)
                     else:
                         u.value = value
-            self._vao(prog).render(moderngl.TRIANGLE_STRIP, vertices=self.n_indices)
+            mode = moderngl.TRIANGLE_STRIP if self.strips == "vertex" else moderngl.LINES_ADJACENCY
+            self._vao(prog).render(mode, vertices=self.n_indices)
         if ms is not None:
             ctx.copy_framebuffer(out, ms)
 
@@ -380,12 +394,14 @@ class LineRenderer:
 
 
 def render_lines(lines: Lines, style: Style | str | os.PathLike, size=(1920, 1080),
-                 camera: Camera | None = None, ctx: moderngl.Context | None = None) -> np.ndarray:
+                 camera: Camera | None = None, ctx: moderngl.Context | None = None,
+                 strips: str = "vertex") -> np.ndarray:
     """Render ``lines`` with ``style`` (a Style or a TOML path) to an (H, W, 4) uint8 RGBA array.
     ``camera`` overrides the style's camera.  Uses a headless EGL context unless ``ctx`` is given.
+    ``strips``: "vertex" or "geometry" shader stage builds the strips (see LineRenderer).
     To draw the same lines many times, keep a ``LineRenderer``."""
     style = _as_style(style)
-    with LineRenderer(lines, ctx) as r:
+    with LineRenderer(lines, ctx, strips=strips) as r:
         return r.render(style, size, camera)
 
 
@@ -402,9 +418,11 @@ def save_png(image: np.ndarray, path: str | os.PathLike) -> Path:
 
 
 def render_file(path: str | os.PathLike, style: Style | str | os.PathLike, size=(1920, 1080),
-                camera: Camera | None = None, ctx: moderngl.Context | None = None) -> np.ndarray:
+                camera: Camera | None = None, ctx: moderngl.Context | None = None,
+                strips: str = "vertex") -> np.ndarray:
     """Render a lines HDF5 file, reading only the geometry and the attributes the style uses."""
     from ..io.lines_h5 import read_lines
 
     style = _as_style(style)
-    return render_lines(read_lines(path, attributes=style.attributes()), style, size, camera, ctx)
+    return render_lines(read_lines(path, attributes=style.attributes()), style, size, camera, ctx,
+                        strips)

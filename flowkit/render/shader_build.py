@@ -35,7 +35,10 @@ TEX_WIDTH = 4096  # points per row of the point/attribute textures
 COLOR_KINDS = ("const", "cmap")
 WIDTH_KINDS = ("const", "map")
 SHAPE_KINDS = ("none", "custom") + SHAPE_NAMES
-TEMPLATE_WORDS = COLOR_KINDS + WIDTH_KINDS + SHAPE_KINDS
+# where the view-oriented strips are built: the vertex shader (vertex pulling, one triangle strip
+# per run; the default: as fast or faster on llvmpipe) or a lines_adjacency geometry shader
+STRIP_STAGES = ("vertex", "geometry")
+TEMPLATE_WORDS = COLOR_KINDS + WIDTH_KINDS + SHAPE_KINDS + STRIP_STAGES
 
 
 @dataclass(frozen=True)
@@ -78,6 +81,7 @@ class ShaderFlags:
     transfer: tuple[RangeFlags, ...] = ()  # empty: always draw style 0
     transfer_attr: int = -1
     transfer_blend: bool = False
+    strip_stage: str = "vertex"  # STRIP_STAGES
 
     @property
     def shapes(self) -> list[str]:
@@ -104,8 +108,10 @@ class ShaderFlags:
         return any(b.width == "map" for s in self.styles for b in s)
 
 
-def shader_flags(style: Style, msaa: bool) -> ShaderFlags:
-    """Flags for ``style``; ``msaa`` says whether the target is multisampled."""
+def shader_flags(style: Style, msaa: bool, strip_stage: str = "vertex") -> ShaderFlags:
+    """Flags for ``style``; ``msaa`` says whether the target is multisampled; ``strip_stage``
+    (STRIP_STAGES) which shader stage builds the strips."""
+    check_strip_stage(strip_stage)
     slots = {name: i for i, name in enumerate(style.attributes())}
     used = style.used_styles()
     first = band_numbers(style)
@@ -157,7 +163,14 @@ def shader_flags(style: Style, msaa: bool) -> ShaderFlags:
         transfer=transfer,
         transfer_attr=tattr,
         transfer_blend=blend,
+        strip_stage=strip_stage,
     )
+
+
+def check_strip_stage(stage: str) -> str:
+    if stage not in STRIP_STAGES:
+        raise ValueError(f"strips = {stage!r}: expected one of {', '.join(STRIP_STAGES)}")
+    return stage
 
 
 def band_numbers(style: Style) -> dict[str, int]:
@@ -248,17 +261,19 @@ _env = jinja2.Environment(
 
 
 def build_sources(flags: ShaderFlags) -> dict[str, str]:
-    """GLSL sources (vertex, fragment) for ``flags``."""
+    """GLSL sources for ``flags``: vertex and fragment shaders, plus the geometry shader when it
+    builds the strips (then the vertex shader only fetches points)."""
     ctx = _checked(asdict(flags))
     ctx.update(glsl_version=GLSL_VERSION, lut_size=LUT_SIZE, tex_width=TEX_WIDTH,
                curve_size=CURVE_SIZE, uses_colormap=flags.uses_colormap,
                uses_width_map=flags.uses_width_map, shapes=_checked(flags.shapes, "shapes"),
                uses_phase=flags.uses_phase, pattern_slots=flags.pattern_slots,
                arrow_shaft=ARROW_SHAFT, arrow_head=ARROW_HEAD, dash_on=DASH_ON)
-    return {
-        "vertex_shader": _env.get_template("lines.vert").render(ctx),
-        "fragment_shader": _env.get_template("lines.frag").render(ctx),
-    }
+    out = {"vertex_shader": _env.get_template("lines.vert").render(ctx)}
+    if flags.strip_stage == "geometry":
+        out["geometry_shader"] = _env.get_template("lines.geom").render(ctx)
+    out["fragment_shader"] = _env.get_template("lines.frag").render(ctx)
+    return out
 
 
 class ProgramCache:

@@ -199,6 +199,16 @@ def select(points, imp, view, px, tol, extra, starts, stops) -> tuple[np.ndarray
     return _select(points, imp, zrow, np.asarray(px, np.float64), float(tol), extra, starts, stops)
 
 
+def adjacency(idx: np.ndarray) -> np.ndarray:
+    """lines_adjacency indices (uint32, 4 per segment) of the strips ``idx`` from ``select``, for
+    the geometry-shader path, which reads point ids at ids[j]: kept entry m (strip vertices
+    2(m-1), 2(m-1)+1) is vertex 2m, and a segment m -> m+1 of a run is (2m-2, 2m, 2m+2, 2m+4);
+    the neighbours outside the run read the -1 that ``select`` puts between runs."""
+    ev = idx[(idx != RESTART) & (idx % 2 == 0)].astype(np.int64)  # 2(m-1) per kept entry m
+    first = ev[:-1][np.diff(ev) == 2]  # segments: the next kept entry is in the same run
+    return (first[:, None] + np.arange(0, 8, 2)).astype(np.uint32).reshape(-1)
+
+
 def attribute_tolerances(style: Style, tol_px: float, ranges: dict[str, float],
                          unit: float = 1.0) -> dict[str, float]:
     """Per attribute the error the picture tolerates, for a pixel tolerance ``tol_px``: half a

@@ -1,0 +1,35 @@
+#version {{ glsl_version }}
+// View-oriented strips from a geometry shader: segment p1-p2 with its drawn neighbours p0, p3
+// (lines_adjacency; a missing neighbour has vs_valid 0) becomes a quad of the same strip that
+// the vertex-stage path draws, with the same offsets at p1 and p2 (strip.glsl), so joins are
+// continuous.
+{% import "strip.glsl" as strip with context %}
+layout(lines_adjacency) in;
+layout(triangle_strip, max_vertices = 4) out;
+in vec3 vs_view[];
+in float vs_valid[];
+{% for k in range(n_attrs) %}
+in float vs_attr{{ k }}[];
+out float g_attr{{ k }};
+{% endfor %}
+{{ strip.code() }}
+
+void end_vertex(vec3 p, vec4 off, float sgn, int i) {
+    strip_vertex(p, off, sgn);
+{% for k in range(n_attrs) %}
+    g_attr{{ k }} = vs_attr{{ k }}[i];
+{% endfor %}
+    EmitVertex();
+}
+
+void main() {
+    vec3 p1 = vs_view[1], p2 = vs_view[2];
+    vec3 p0 = vs_valid[0] > 0.5 ? vs_view[0] : p1;
+    vec3 p3 = vs_valid[3] > 0.5 ? vs_view[3] : p2;
+    vec4 o1 = strip_offset(p0, p1, p2), o2 = strip_offset(p1, p2, p3);
+    end_vertex(p1, o1, 1.0, 1);
+    end_vertex(p1, o1, -1.0, 1);
+    end_vertex(p2, o2, 1.0, 2);
+    end_vertex(p2, o2, -1.0, 2);
+    EndPrimitive();
+}

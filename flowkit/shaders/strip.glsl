@@ -1,0 +1,45 @@
+{# The view-oriented strip, shared by both strip stages (lines.vert with strip_stage "vertex",
+   lines.geom with "geometry"): uniforms, the mitred side offset at a point from its drawn
+   neighbours, and the placement of one strip vertex.  Whichever stage builds the strip
+   includes this once; the other stage holds none of it. #}
+{% macro code() %}
+uniform mat4 u_proj;
+uniform float u_half;       // strip half-width, style units (scale x widest style's total width)
+uniform float u_pad;        // extra half-width in pixels: room for analytic edge smoothing
+uniform float u_pixels;     // 1: style units are pixels, 0: world units
+uniform vec2 u_px;          // world size of one pixel at view depth z: u_px.x * (-z) + u_px.y
+uniform float u_persp;      // 1 perspective (view rays through the eye), 0 orthographic
+out float g_b;              // signed lateral position, style units (0 on the centre line)
+out float g_z;              // view-space z (for depth offsets)
+
+vec3 safe_dir(vec3 v, vec3 fallback) {
+    float n = length(v);
+    return n > 1e-12 ? v / n : fallback;
+}
+
+// Offset from view-space point p to the strip's + edge (xyz) and that half-width in style units
+// (w).  a, c: the previous and next drawn points, equal to p where there is none.  The offset
+// depends only on the point and its neighbours, so the strips of consecutive segments share
+// their edge: joins are continuous (mitred, limit 2).
+vec4 strip_offset(vec3 a, vec3 p, vec3 c) {
+    vec3 e = normalize(mix(vec3(0.0, 0.0, 1.0), -p, u_persp));   // towards the viewer
+    vec3 t_in = safe_dir(p - a, vec3(0.0)), t_out = safe_dir(c - p, vec3(0.0));
+    vec3 t_seg = dot(t_in, t_in) > 0.0 ? t_in : safe_dir(t_out, vec3(1.0, 0.0, 0.0));
+    vec3 t = safe_dir(t_in + t_out, t_seg);
+    vec3 s_seg = safe_dir(cross(t_seg, e), vec3(1.0, 0.0, 0.0));
+    vec3 s = safe_dir(cross(t, e), s_seg);
+    s /= max(abs(dot(s, s_seg)), 0.5);  // mitre: the same for both segments (s bisects them)
+    float px = u_px.x * (-p.z) + u_px.y;   // world size of a pixel at this depth
+    float unit = mix(1.0, px, u_pixels);    // world size of one style unit
+    float half_world = u_half * unit + u_pad * px;
+    return vec4(half_world * s, half_world / unit);
+}
+
+// One strip vertex: p moved to side sgn (+1 / -1) by `off` (from strip_offset)
+void strip_vertex(vec3 p, vec4 off, float sgn) {
+    vec3 v = p + sgn * off.xyz;
+    gl_Position = u_proj * vec4(v, 1.0);
+    g_b = sgn * off.w;
+    g_z = v.z;
+}
+{% endmacro %}
