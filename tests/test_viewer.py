@@ -303,3 +303,18 @@ def test_screenshot_key_writes_png(fresh):
     assert img.shape == (SIZE[1], SIZE[0], 4)
     np.testing.assert_array_equal(img, fresh.renderer.read())
     assert not list(fresh.screenshot_dir.glob(".*.tmp.png"))  # atomic: no temp left
+
+
+def test_benchmark_runs(display, monkeypatch, capsys):
+    """benchmarks/bench_viewer.py at a tiny size: every kind of change lands as it says."""
+    from pathlib import Path
+
+    monkeypatch.setenv("MESA_SHADER_CACHE_DISABLE", "true")  # restored after the test
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_viewer
+
+    assert bench_viewer.main(["--lines", "10", "--vertices", "40", "--repeat", "1",
+                              "--size", "200x150"]) == 0
+    out = capsys.readouterr().out
+    for kind in bench_viewer.KINDS:  # each timed change asserted its update kind in the run
+        assert kind in out

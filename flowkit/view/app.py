@@ -82,6 +82,7 @@ class Viewer:
         glfw.swap_interval(1 if vsync else 0)
         self.ctx: moderngl.Context = create_context("window")
         self._imgui = imgui.create_context()
+        imgui.set_current_context(self._imgui)  # create_context only sets it when there is none
         imgui.get_io().set_ini_filename(None)  # no imgui.ini beside the user's files
         imgui.backends.opengl3_init("#version 330")
         self.renderer = LineRenderer(lines, self.ctx, tolerance=tolerance)
@@ -311,6 +312,10 @@ class Viewer:
         self.scene_time = time.perf_counter() - t0
         self.scene_draws += 1
         self._scene_key = key
+
+    def invalidate(self) -> None:
+        """Draw the scene again at the next frame (it is otherwise kept while nothing changes)."""
+        self._scene_key = None
 
     def step(self, read_screen: bool = False) -> np.ndarray | None:
         """One frame.  ``read_screen``: return the window's image (scene + panel) as (H, W, 4)
