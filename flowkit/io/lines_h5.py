@@ -28,6 +28,9 @@ offsets[i]:offsets[i+1] of every (obs) variable (the CF contiguous ragged array 
 from __future__ import annotations
 
 import json
+import os
+import zlib
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Self
 
@@ -127,6 +130,7 @@ class LinesWriter:
         self._synthesize_seed_id = "seed_id" not in self.line_schema
         self.n_points = self.n_lines = 0
 
+        self._columns = {}  # gzip datasets: compressed here, on every core (_Column)
         self._atomic = AtomicPath(self.path)
         self._file = h5py.File(self._atomic.tmp, "w", track_order=True)
         try:
@@ -163,6 +167,8 @@ class LinesWriter:
         for topology in ("Vertices", "Polygons", "Strips"):
             _topology(vtk, topology, {}, 1, 1)
         _topology(vtk, "Lines", comp, chunk_lines, chunk_points)
+        self._store([(vtk[f"{t}/Offsets"], np.zeros(1, np.int64))  # Offsets start with 0
+                     for t in ("Vertices", "Polygons", "Strips", "Lines")])
 
         def growing(group, name, dtype, shape, chunk):
             return group.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape),
@@ -222,19 +228,32 @@ class LinesWriter:
                                  f"flowkit.integrate.reasons.Reason values")
         n0, l0 = self.n_points, self.n_lines
         n1, l1 = n0 + lines.n_points, l0 + len(lines)
-        _put(self._points, n0, n1, lines.points)
-        for name, ds in self._point_ds.items():
-            _put(ds, n0, n1, lines.point_data[name])
         line_data = dict(lines.line_data)
         if self._synthesize_seed_id:
             line_data["seed_id"] = np.arange(l0, l1)
-        for name, ds in self._line_ds.items():
-            _put(ds, l0, l1, line_data[name])
-        _put(self._rowsize, l0, l1, lines.lengths)
         topo = self._file["VTKHDF/Lines"]
-        _put(topo["Offsets"], l0 + 1, l1 + 1, lines.offsets[1:] + n0)
-        _put(topo["Connectivity"], n0, n1, np.arange(n0, n1, dtype=np.int64))
+        rows = [(self._points, lines.points), (self._rowsize, lines.lengths),
+                (topo["Offsets"], lines.offsets[1:] + n0),
+                (topo["Connectivity"], np.arange(n0, n1, dtype=np.int64))]
+        rows += [(ds, lines.point_data[name]) for name, ds in self._point_ds.items()]
+        rows += [(ds, line_data[name]) for name, ds in self._line_ds.items()]
+        self._store(rows)
         self.n_points, self.n_lines = n1, l1
+
+    def _store(self, rows, final=False) -> None:
+        """Append rows to datasets; gzip chunks are compressed in parallel, written in order."""
+        jobs = []
+        for ds, values in rows:
+            if ds.compression != "gzip":
+                _put(ds, ds.shape[0], ds.shape[0] + len(values), values)
+                continue
+            col = self._columns.get(ds.name) or self._columns.setdefault(
+                ds.name, _Column(ds, ds.compression_opts))
+            jobs += col.append(values, final)
+        for ds, offset, size, job in jobs:
+            if ds.shape[0] < size:
+                ds.resize(size, axis=0)
+            ds.id.write_direct_chunk((offset,) + (0,) * (ds.ndim - 1), job.result())
 
     def close(self) -> Path:
         """Finish the file and rename it onto ``path``."""
@@ -270,6 +289,7 @@ class LinesWriter:
 
     def _finish(self):
         f, n, nl = self._file, self.n_points, self.n_lines
+        self._store([(c.ds, c.tail[:0]) for c in self._columns.values()], final=True)
         nc.resize_dimension(self._obs, n)
         nc.resize_dimension(self._traj, nl)
         f["VTKHDF/NumberOfPoints"][0] = n
@@ -313,6 +333,53 @@ def _check_chunk(arrays: dict, schema: dict, kind: str, path) -> None:
                              f"{a.shape[1:]}, the file holds {dtype} rows of shape {shape}")
 
 
+_POOL = (None, None)  # (pid, executor): a forked child makes its own
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    if _POOL[0] != os.getpid():
+        _POOL = (os.getpid(), ThreadPoolExecutor(os.cpu_count() or 1,
+                                                 thread_name_prefix="flowkit-gzip"))
+    return _POOL[1]
+
+
+def _deflate(block: np.ndarray, level: int) -> bytes:
+    """HDF5's shuffle then deflate filters, as its own pipeline stores a chunk."""
+    raw = np.ascontiguousarray(block).view(np.uint8).reshape(-1, block.dtype.itemsize)
+    return zlib.compress(raw.T.tobytes(), level)
+
+
+class _Column:
+    """Rows appended to a chunked gzip+shuffle dataset: full chunks go to a thread pool (zlib
+    releases the GIL), the rest waits for the next append; ``final`` pads the last chunk, which
+    HDF5 stores whole.  Returns jobs (dataset, row offset, rows the dataset needs, future)."""
+
+    def __init__(self, ds: h5py.Dataset, level: int):
+        self.ds, self.level, self.rows = ds, level, ds.chunks[0]
+        self.stored = 0  # rows handed out in whole chunks
+        self.tail = np.empty((0, *ds.shape[1:]), ds.dtype)
+
+    def append(self, values, final=False) -> list:
+        data = np.asarray(values, self.ds.dtype)
+        if len(self.tail):
+            data = np.concatenate([self.tail, data])
+        n = len(data)
+        whole = n if final else n // self.rows * self.rows
+        self.tail = data[whole:].copy()
+        jobs = []
+        for i in range(0, whole, self.rows):
+            block = data[i:i + self.rows]
+            need = self.stored + i + len(block)
+            if len(block) < self.rows:  # the last, partial chunk
+                pad = np.zeros((self.rows - len(block), *data.shape[1:]), data.dtype)
+                block = np.concatenate([block, pad])
+            jobs.append((self.ds, self.stored + i, need,
+                         _pool().submit(_deflate, block, self.level)))
+        self.stored += whole
+        return jobs
+
+
 def _put(ds: h5py.Dataset, start: int, stop: int, values) -> None:
     """Grow ``ds`` to ``stop`` rows and write ``values`` into rows start:stop."""
     ds.resize(stop, axis=0)
@@ -325,7 +392,7 @@ def _topology(vtk: h5py.Group, name: str, comp: dict, chunk_cells: int, chunk_id
     g = vtk.create_group(name)
     g.create_dataset("NumberOfCells", data=np.zeros(1, np.int64))
     g.create_dataset("NumberOfConnectivityIds", data=np.zeros(1, np.int64))
-    g.create_dataset("Offsets", data=np.zeros(1, np.int64), maxshape=(None,),
+    g.create_dataset("Offsets", shape=(0,), dtype=np.int64, maxshape=(None,),
                      chunks=(chunk_cells + 1,), **comp)
     g.create_dataset("Connectivity", shape=(0,), dtype=np.int64, maxshape=(None,),
                      chunks=(chunk_ids,), **comp)
