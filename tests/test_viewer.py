@@ -132,6 +132,22 @@ def test_window_shows_scene_and_panel(fresh):
     # the panel covers the top left: it differs from the (black there) scene
     assert lit(img[10:100, 10:300]).mean() > 0.3 and not lit(scene(fresh)[10:100, 10:300]).any()
     assert fresh.frame_time > 0 and fresh.scene_time > 0
+    import glfw
+
+    glfw.set_window_size(fresh.window, 500, 300)  # the scene follows the window's size
+    try:
+        for _ in range(20):  # the X server applies the resize asynchronously
+            img = fresh.step(read_screen=True)
+            if img.shape[:2] == (300, 500):
+                break
+        assert img.shape[:2] == (300, 500) and fresh.size == (500, 300)
+        np.testing.assert_array_equal(img[:, 400:, :3], scene(fresh)[:, 400:])
+    finally:
+        glfw.set_window_size(fresh.window, *SIZE)
+        for _ in range(20):
+            fresh.step()
+            if fresh.size == SIZE:
+                break
 
 
 def test_orbit_turns_the_line(fresh):

@@ -193,3 +193,16 @@ def test_cli_view_errors(tmp_path):
     r = subprocess.run(run + [str(style)], env=env, capture_output=True, text=True, timeout=120,
                        check=False)
     assert r.returncode == 2 and str(style) in r.stderr and "width" in r.stderr
+
+
+def test_viewer_refuses_a_style_the_lines_cannot_show(tmp_path):
+    """Checked before any window opens: the file, the attribute and what there is."""
+    from flowkit.lines import Lines
+    from flowkit.view.app import Viewer
+
+    style = tmp_path / "s.toml"
+    style.write_text('version = 1\n[[bands]]\ncolor = { cmap = "gray", attribute = "T", '
+                     'range = [0, 1] }\n')
+    lines = Lines(np.zeros((2, 3)) + [[0, 0, 0], [1, 0, 0]], [0, 2], {"speed": np.ones(2)})
+    with pytest.raises(StyleError, match=r"s\.toml.*'T'.*available: speed"):
+        Viewer(lines, style)

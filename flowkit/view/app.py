@@ -47,6 +47,20 @@ def read_style(path: Path) -> tuple[Style, dict]:
     return style_from_dict(data, where=str(path)), data
 
 
+def unreadable(lines: Lines, style: Style) -> str | None:
+    """Why ``lines`` cannot be drawn with ``style`` (an attribute they lack), or None."""
+    have = lines.point_data
+    for a in style.attributes():
+        if a in have and np.ndim(have[a]) != 1:
+            return (f"attribute '{a}' has shape {np.shape(have[a])}; a style can only map "
+                    "scalar (one value per vertex) attributes")
+        if a not in have and a not in lines.line_data:
+            names = sorted(have) + sorted(lines.line_data)
+            return (f"the style reads attribute '{a}', which these lines do not have; "
+                    f"available: {', '.join(names) or 'none'}")
+    return None
+
+
 def _init_glfw() -> None:
     errors = []
     glfw.set_error_callback(lambda code, text: errors.append(text.decode(errors="replace")
@@ -66,6 +80,9 @@ class Viewer:
         self.lines = lines
         self.style_path = Path(style_path)
         style, data = read_style(self.style_path)  # a bad style at start is the caller's error
+        problem = unreadable(lines, style)
+        if problem is not None:
+            raise StyleError(f"{self.style_path}: {problem}")
         self.watch = FileWatch(self.style_path)
         _init_glfw()
         for hint, value in ((glfw.CONTEXT_VERSION_MAJOR, 3), (glfw.CONTEXT_VERSION_MINOR, 3),
@@ -123,24 +140,11 @@ class Viewer:
             print(f"flowkit view: {message}", file=sys.stderr, flush=True)
         self.error = message
 
-    def _unreadable(self, style: Style) -> str | None:
-        """Why the lines cannot be drawn with ``style`` (an attribute they lack), or None."""
-        have = self.lines.point_data
-        for a in style.attributes():
-            if a in have and np.ndim(have[a]) != 1:
-                return (f"attribute '{a}' has shape {np.shape(have[a])}; a style can only map "
-                        "scalar (one value per vertex) attributes")
-            if a not in have and a not in self.lines.line_data:
-                names = sorted(have) + sorted(self.lines.line_data)
-                return (f"the style reads attribute '{a}', which these lines do not have; "
-                        f"available: {', '.join(names) or 'none'}")
-        return None
-
     def set_style(self, style: Style) -> str | None:
         """Make ``style`` current: "uniforms" (same template flags), "recompile" (other flags),
         "unchanged", or None when it cannot be drawn (the error is reported, the current style
         stays)."""
-        problem = self._unreadable(style)
+        problem = unreadable(self.lines, style)
         if problem is not None:
             self._report(problem)
             return None

@@ -16,7 +16,7 @@ from .edit import get_at, params
 
 # offered in the colormap combo (any name the cmap package knows works in the file)
 COLORMAPS = ("viridis", "magma", "inferno", "plasma", "cividis", "turbo", "bupu", "ylorrd",
-             "coolwarm", "gray")
+             "gray")
 ERROR_COLOR = imgui.ImVec4(1.0, 0.35, 0.3, 1.0)
 
 _KEYS = {glfw.KEY_TAB: imgui.Key.tab, glfw.KEY_LEFT: imgui.Key.left_arrow,
@@ -52,10 +52,12 @@ class Panel:
     def draw(self) -> None:
         v = self.viewer
         imgui.set_next_window_pos(imgui.ImVec2(8, 8), imgui.Cond_.first_use_ever)
-        imgui.set_next_window_size(imgui.ImVec2(330, 0), imgui.Cond_.first_use_ever)
+        height = imgui.get_io().display_size.y - 16
+        imgui.set_next_window_size(imgui.ImVec2(340, height), imgui.Cond_.first_use_ever)
         imgui.begin("flowkit view")
-        imgui.text(f"frame {1e3 * v.frame_time:.1f} ms   scene {1e3 * v.scene_time:.1f} ms   "
-                   f"{v.renderer.n_drawn} vertices")
+        imgui.push_item_width(-135)  # widgets leave room for their labels
+        imgui.text(f"frame {1e3 * v.frame_time:.1f} ms, scene {1e3 * v.scene_time:.1f} ms")
+        imgui.text(f"{v.renderer.n_drawn} of {v.lines.n_points} vertices drawn")
         imgui.text(f"updates: {v.updates['uniforms']} uniform-only, {v.updates['recompile']} "
                    "recompile")
         if v.error:
@@ -72,9 +74,12 @@ class Panel:
         imgui.same_line()
         if imgui.button("colour attribute"):
             v.cycle_color_attribute()
-        imgui.text_disabled("drag: orbit  right/shift drag: pan  scroll: zoom\n"
-                            "R reset  S screenshot  C colour attribute  Esc quit")
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_disabled("drag: orbit, right/shift drag: pan, scroll: zoom; R reset camera, "
+                            "S screenshot, C colour attribute, Esc quit")
+        imgui.pop_text_wrap_pos()
         self._params()
+        imgui.pop_item_width()
         imgui.end()
 
     def _params(self) -> None:
@@ -83,8 +88,7 @@ class Panel:
         for p in params(self.viewer.style):
             if p.group != group:
                 group = p.group
-                is_open = imgui.collapsing_header(group, imgui.TreeNodeFlags_.default_open
-                                                  if group == "scene" else 0)
+                is_open = imgui.collapsing_header(group, imgui.TreeNodeFlags_.default_open)
             if not is_open:
                 continue
             imgui.push_id(repr(p.path))
