@@ -334,3 +334,25 @@ def test_benchmark_runs(display, monkeypatch, capsys):
     out = capsys.readouterr().out
     for kind in bench_viewer.KINDS:  # each timed change asserted its update kind in the run
         assert kind in out
+
+
+def test_run_loop_until_escape(display, tmp_path):
+    """run() draws frames until Esc closes the window, then frees it."""
+    import glfw
+
+    from flowkit.view.app import Viewer
+
+    style = tmp_path / "s.toml"
+    style.write_text(BASE)
+    t = np.linspace(0.0, 1.0, 8)
+    v = Viewer(Lines(np.c_[t, t, t], [0, 8], {"speed": t}), style, size=(200, 150), vsync=False)
+    step = v.step
+
+    def counted():
+        step()
+        if v.frames == 3:
+            v.on_key(glfw.KEY_ESCAPE)
+
+    v.step = counted
+    v.run()
+    assert v.frames == 3 and v.window is None

@@ -121,6 +121,7 @@ class Viewer:
         self._scene_key = None
         self._drag: int | None = None
         self._cursor: tuple[float, float] | None = None
+        self._pixel_scale = 1.0
         self._last = time.perf_counter()
         self.panel = Panel(self)
         glfw.set_cursor_pos_callback(self.window, self._cursor_cb)
@@ -270,7 +271,8 @@ class Viewer:
         if self._drag is not None and self._cursor is not None:
             mods = glfw.MOD_SHIFT if (glfw.get_key(self.window, glfw.KEY_LEFT_SHIFT)
                                       or glfw.get_key(self.window, glfw.KEY_RIGHT_SHIFT)) else 0
-            self.on_drag(x - self._cursor[0], y - self._cursor[1], self._drag, mods)
+            k = self._pixel_scale  # window coordinates -> framebuffer pixels (HiDPI)
+            self.on_drag(k * (x - self._cursor[0]), k * (y - self._cursor[1]), self._drag, mods)
         self._cursor = (x, y)
 
     def _button_cb(self, _win, button, action, _mods) -> None:
@@ -336,6 +338,7 @@ class Viewer:
             glfw.wait_events_timeout(0.1)
             return None
         self.size = (fw, fh)
+        self._pixel_scale = fw / ww
         io = imgui.get_io()
         io.display_size = imgui.ImVec2(ww, wh)
         io.display_framebuffer_scale = imgui.ImVec2(fw / ww, fh / wh)
