@@ -132,6 +132,13 @@ class _Setup:
     def __init__(self, field: Field, opts: TraceOptions, backend="numba"):
         _attributes.check(field, opts.attributes)
         self.advance = _backend(backend)
+        # a backend that computes the requested attributes itself (OpenCL: in its kernel) returns
+        # a callable writing them into out_par's columns after (t, s) and decoding them
+        bind = getattr(self.advance, "bind_attributes", None)
+        if bind is not None and opts.attributes:
+            self.advance = bind(field, opts.attributes)
+        self.n_columns = getattr(self.advance, "n_columns", 0)
+        self.point_data = None  # the last run's backend attributes, in its vertex order
         if opts.method == "ros34pw2" and backend != "numba":
             raise OptionsError(f"method ros34pw2 runs on the numba backend only, got backend "
                                f"{backend!r} (method auto re-traces its stiff lines on numba)")
@@ -187,7 +194,7 @@ class _Setup:
             B = 2
         # one allocation, reused by every pass (later passes have fewer lines)
         buf_p = np.empty((n, B, 3))
-        buf_par = np.empty((n, B, 2))
+        buf_par = np.empty((n, B, 2 + self.n_columns))
         buf_n = np.zeros(n, np.int64)
         while active.size:
             out_p, out_par, out_n = buf_p[:active.size], buf_par[:active.size], buf_n[:active.size]
@@ -204,11 +211,18 @@ class _Setup:
             active = active[busy]
         if len(chunks_owner) == 1:  # one pass: already grouped by line, in order
             par = chunks_par[0]
+            self._keep_point_data(par)
             return chunks_p[0], par[:, 0].copy(), par[:, 1].copy(), chunks_owner[0], si
         owner = np.concatenate(chunks_owner)
         order = np.argsort(owner, kind="stable")
         par = np.concatenate(chunks_par)[order]
+        self._keep_point_data(par)
         return np.concatenate(chunks_p)[order], par[:, 0].copy(), par[:, 1].copy(), owner[order], si
+
+    def _keep_point_data(self, par):
+        self.point_data = None
+        if self.n_columns:
+            self.point_data = self.advance.point_data(par[:, 0], par[:, 1], par[:, 2:])
 
 
 def _backend(backend):
@@ -290,7 +304,7 @@ def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> L
             "n_accepted": si[:, K.I_NACC].astype(np.int32),
             "n_rejected": si[:, K.I_NREJ].astype(np.int32),
             "stiff": ((si[:, K.I_STIFF] >> 16) & 1).astype(np.int8)}  # stiffness.is_stiff's bit
-    lines = _assemble(field, opts, seeds, id0, pts, t, s, owner, cols)
+    lines = _assemble(field, opts, seeds, id0, pts, t, s, owner, cols, setup.point_data)
     if opts.method == "auto":
         lines = _retrace_stiff(field, setup, seeds, opts, lines)
     return lines
@@ -312,7 +326,8 @@ def _retrace_stiff(field, setup, seeds, opts, lines: Lines) -> Lines:
     return both[np.argsort(both.line_data["seed_id"], kind="stable")]
 
 
-def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols) -> Lines:
+def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols,
+              point_data=None) -> Lines:
     """Lines from the vertices of the tasks (grouped by task, in order along each) and per-task
     line_data columns; direction both joins task 2i (backward) and 2i + 1 (forward) through the
     seed: reason is the forward half's (``reason_backward`` the other), stiff either half's,
@@ -338,11 +353,16 @@ def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols) -> 
             else:
                 ld[name] = c[0::2] + c[1::2]
         pts, t, s = pts[idx], t[idx], s[idx]
+        if point_data is not None:
+            point_data = {k: v[idx] for k, v in point_data.items()}
     else:
         line_of = owner
         ld.update(cols)
     offsets = np.concatenate([[0], np.cumsum(np.bincount(line_of, minlength=n))])
     seed_of = seeds[line_of]
-    pd = _attributes.compute(field, opts.attributes, pts, t, s, seed_of) if opts.attributes else {}
+    if point_data is not None:  # computed by the backend (OpenCL: in its kernel)
+        pd = point_data
+    else:
+        pd = _attributes.compute(field, opts.attributes, pts, t, s, seed_of) if opts.attributes else {}
     return Lines(pts, offsets, pd, ld)
 

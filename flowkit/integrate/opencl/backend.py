@@ -7,13 +7,19 @@ shared by both backends.  The active lines are processed in chunks; each chunk's
 uploaded on one queue, advanced on a second and read back on a third, so that on a device with
 copy engines the transfers of one chunk overlap the kernel of the next.  The field and the grid
 are uploaded once per field.
+
+Per-vertex attributes: ``trace`` asks the backend to ``bind_attributes(field, names)`` and gets a
+callable whose kernel also computes them as each vertex is written (``vertex.py``), into one
+output buffer per attribute that is read back with the positions, into the columns of ``out_par``
+after (t, s); the host then only reorders them with the vertices.  Field data an attribute needs
+(scalar fields, the vorticity's derivative stencils) is uploaded only when one asks for it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from . import codegen
+from . import codegen, vertex
 from .device import select_device, supports_fp64
 
 DEFAULT_CHUNK = 65536  # lines per launch
@@ -30,10 +36,18 @@ class OpenCLAdvance:
     dtype   "float64" (default where the device has fp64, else float32) or "float32"
     image   sample the field from an image3d with hardware linear filtering (float32 texels);
             see docs/opencl.md for the error this adds
+    kernel_attributes
+            compute the per-vertex attributes in the kernel (default); False leaves them to the
+            host code of trace (numba/numpy on the read-back vertices), for comparison
+    profile record the profiling events of every copy and launch in ``timeline`` as
+            (kind "up"/"run"/"down", chunk number, event), to see what overlaps
     """
 
+    n_columns = 0  # attribute columns this callable adds to out_par (see bind_attributes)
+
     def __init__(self, spec: str = "opencl", dtype: str | None = None, image: bool = False,
-                 chunk: int = DEFAULT_CHUNK, local_size: int = LOCAL_SIZE):
+                 chunk: int = DEFAULT_CHUNK, local_size: int = LOCAL_SIZE,
+                 kernel_attributes: bool = True, profile: bool = False):
         import pyopencl as cl
 
         self.cl = cl
@@ -54,8 +68,13 @@ class OpenCLAdvance:
         self.chunk = int(chunk)
         self.local = int(local_size)
         self.ctx = _context(self.device)
-        self.q_up, self.q_run, self.q_down = (cl.CommandQueue(self.ctx, self.device) for _ in range(3))
+        props = cl.command_queue_properties.PROFILING_ENABLE if profile else 0
+        self.q_up, self.q_run, self.q_down = (cl.CommandQueue(self.ctx, self.device, properties=props)
+                                              for _ in range(3))
+        self.timeline = [] if profile else None
+        self.kernel_attributes = bool(kernel_attributes)
         self._field = None  # (key arrays, device buffers)
+        self._extra = {}  # device data of what attributes need: (kind, id(source)) -> (source, data)
         self.launches = 0
 
     def describe(self) -> str:
@@ -78,19 +97,68 @@ class OpenCLAdvance:
         self._field = ((gx, gy, gz, vec), bufs)
         return bufs
 
+    def _cached(self, field, kind, src, make):
+        """``make()`` (device data derived from ``src``, part of ``field``), made once per ``src``
+        object; the cache holds ``src`` so that its id stays its own, and one field at a time."""
+        if self._extra.get("field") is not field.vector:
+            self._extra = {"field": field.vector}
+        hit = self._extra.get((kind, id(src)))
+        if hit is None:
+            hit = self._extra[(kind, id(src))] = (src, make())
+        return hit[1]
+
+    def _buffer(self, arr, dtype):
+        mf = self.cl.mem_flags
+        return self.cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                              hostbuf=np.ascontiguousarray(arr, dtype))
+
+    # -- attributes -----------------------------------------------------------------------
+    def bind_attributes(self, field, names):
+        """The callable ``trace`` runs when attributes ``names`` of ``field`` are requested: this
+        backend with the attributes computed in the kernel (or itself, leaving them to the host,
+        when ``kernel_attributes`` is off)."""
+        if not self.kernel_attributes or not names:
+            return self
+        return _WithAttributes(self, field, vertex.Plan.of(field, names))
+
+    def _attribute_args(self, field, plan):
+        """Kernel arguments after ``B`` for ``plan``: per scalar field its buffer (and a None
+        for its output, per chunk), the vector buffer with an image3d field, the stencils."""
+        args = []
+        for name in plan.scalars:
+            arr = field.scalars[name]
+            args += [self._cached(field, "scalar", arr, lambda a=arr: self._buffer(a, self.dtype)), None]
+        if self.image and plan.needs_vector:
+            args.append(self._cached(field, "vector", field.vector,
+                                     lambda: self._buffer(field.vector, self.dtype)))
+        if plan.needs_stencils:
+            def make():
+                nodes, weights, k = vertex.stencils(field.grid)
+                return [self._buffer(nodes, np.int32), self._buffer(weights, self.dtype), np.int32(k)]
+            args += self._cached(field, "stencils", field.grid, make)
+        return args
+
     # -- one pass ----------------------------------------------------------------------------
-    def __call__(self, active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                 mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
+    def __call__(self, *args):
+        self._run(args, None)
+
+    def _run(self, args, bound):
+        (active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
+         mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n) = args
         cl = self.cl
         from .. import kernel as K
 
+        plan = bound.plan if bound is not None else vertex.Plan((), (), ())
         arrays = (mc, ma, mb, me, me2, mp, mi)
         flags = codegen.Flags(
             method=_method_name(arrays), tableau=codegen.tableau_key(arrays), real=self.real,
             aware=bool(io[K.P_AWARE]), periodic=bool(np.any(np.asarray(period) > 0)),
-            uniform=bool(np.all(np.asarray(inv) > 0)), image=self.image)
+            uniform=bool(np.all(np.asarray(inv) > 0)), image=self.image,
+            attrs=plan.attrs, scalars=len(plan.scalars))
         knl = codegen.kernel(self.ctx, self.device, flags, arrays)
         fbufs = self._field_buffers(gx, gy, gz, period, vec)
+        extra = bound.args if bound is not None else []
+        outs = plan.outputs()
         local = min(self.local, knl.get_work_group_info(
             cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device))
         n = active.size
@@ -109,9 +177,11 @@ class OpenCLAdvance:
                        np.ascontiguousarray(sf[idx], dt), np.ascontiguousarray(si[idx], np.int64)]
             dev_in = [cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, h.nbytes) for h in host_in]
             ev_up = [cl.enqueue_copy(self.q_up, d, h, is_blocking=False) for d, h in zip(dev_in, host_in)]
+            host_attr = [np.empty((m, B) if c == 1 else (m, B, c), dt) for _, c in outs]
             host_out = [np.empty((m, B, 3), dt), np.empty((m, B, 2), dt), np.empty(m, np.int64),
-                        host_in[4], host_in[5]]
-            dev_out = [cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, h.nbytes) for h in host_out[:3]]
+                        *host_attr, host_in[4], host_in[5]]
+            dev_out = [cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, h.nbytes)
+                       for h in host_out[:-2]]
             scal = [np.float64(x) if self.real == "double" else np.float32(x)
                     for x in (*period, *inv)]
             args = [np.int32(m), *dev_in[:4], *fbufs[:3],
@@ -119,23 +189,53 @@ class OpenCLAdvance:
             if self.image:
                 args.append(fbufs[4])
             args += [fo_buf, np.int64(io[K.P_MAXSTEPS]), np.int32(io[K.P_PARAM]),
-                     np.int32(io[K.P_EMIT]), dev_in[4], dev_in[5], *dev_out, np.int32(B)]
+                     np.int32(io[K.P_EMIT]), dev_in[4], dev_in[5], *dev_out[:3], np.int32(B)]
+            # attribute outputs (built-ins in plan order), then per scalar (field, output), ...
+            a_out = iter(dev_out[3:])
+            args += [next(a_out) for _ in plan.attrs]
+            args += [next(a_out) if x is None else x for x in extra]
             glob = -(-m // local) * local
             ev_run = knl(self.q_run, (glob,), (local,), *args, wait_for=ev_up)
             self.launches += 1
             ev_down = [cl.enqueue_copy(self.q_down, h, d, is_blocking=False, wait_for=[ev_run])
                        for h, d in zip(host_out, dev_out + dev_in[4:])]
             pending.append((lo, hi, idx, host_in, host_out, ev_down))
+            if self.timeline is not None:
+                self.timeline += ([("up", self.launches, e) for e in ev_up] + [("run", self.launches, ev_run)]
+                                  + [("down", self.launches, e) for e in ev_down])
             for q in (self.q_up, self.q_run, self.q_down):
                 q.flush()
-        for lo, hi, idx, _host_in, (op, opar, on, sfc, sic), ev_down in pending:
+        for lo, hi, idx, _host_in, (op, opar, on, *attr, sfc, sic), ev_down in pending:
             cl.wait_for_events(ev_down)
             with np.errstate(invalid="ignore"):  # float32 slots past out_n hold garbage
                 out_p[lo:hi] = op
-                out_par[lo:hi] = opar
+                out_par[lo:hi, :, :2] = opar
+                col = 2
+                for a in attr:
+                    c = 1 if a.ndim == 2 else a.shape[2]
+                    out_par[lo:hi, :, col:col + c] = a.reshape(a.shape[0], B, c)
+                    col += c
             out_n[lo:hi] = on
             sf[idx] = sfc
             si[idx] = sic
+
+
+class _WithAttributes:
+    """An OpenCLAdvance whose kernel also computes the attributes of ``plan`` (what
+    ``bind_attributes`` returns to trace): ``n_columns`` extra columns of out_par, decoded by
+    ``point_data``."""
+
+    def __init__(self, base: OpenCLAdvance, field, plan: vertex.Plan):
+        self.base = base
+        self.plan = plan
+        self.args = base._attribute_args(field, plan)
+        self.n_columns = plan.n_columns
+
+    def __call__(self, *args):
+        self.base._run(args, self)
+
+    def point_data(self, t, s, columns):
+        return self.plan.point_data(t, s, columns)
 
 
 def field_image(ctx, vec, period):

@@ -33,6 +33,10 @@ class Flags:
     periodic: bool = False  # any periodic axis: wrap code included
     uniform: bool = True  # all axes uniform: O(1) cell lookup instead of a binary search
     image: bool = False  # field from an image3d with hardware linear filtering
+    # per-vertex attributes computed in the kernel (vertex.KERNEL_ATTRS, in that order) and the
+    # number of scalar fields sampled; time and arc length need no code (the kernel's t and s)
+    attrs: tuple = ()
+    scalars: int = 0
 
     def describe(self) -> str:
         d = asdict(self)
@@ -87,7 +91,8 @@ def render(flags: Flags, arrays) -> str:
                                 and isinstance(getattr(K, n), int)})
     return _env().get_template("advance.cl.j2").render(
         method=flags.method, real=real, aware=flags.aware, periodic=flags.periodic,
-        uniform=flags.uniform, image=flags.image, S=S, q=q, QMAX=K.QMAX, NF=K.NF, NI=K.NI,
+        uniform=flags.uniform, image=flags.image, attrs=flags.attrs, n_scalars=flags.scalars,
+        S=S, q=q, QMAX=K.QMAX, NF=K.NF, NI=K.NI,
         c=consts, kexp=kexp, adaptive=bool(adaptive), has_e2=bool(has_e2), fs=fs,
         pre_stages=range(1, n_err), post_stages=range(n_err, fs + 1), dense_stages=range(fs + 1, S),
         b_terms=terms(b[:n_err]), e_terms=terms(e[:n_err]), e2_terms=terms(e2[:n_err]),
