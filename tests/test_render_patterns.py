@@ -136,6 +136,18 @@ def test_shader_has_pattern_code_only_when_used():
     assert "shape_" not in frag and "u_pcmap" not in frag
 
 
+
+@pytest.mark.parametrize("a, c, pow_, lateral", [(0.0, 2.0, False, False), (0.5, 1.0, False, True),
+                                                 (0.5, 2.0, True, True)])
+def test_pattern_lateral_term_compiled_only_as_far_as_slope_and_curve_need(a, c, pow_, lateral):
+    # no slant (a = 0): no lateral term at all; c = 1: linear, no pow (llvmpipe pays for a pow
+    # on every fragment of the strip)
+    frag = build_sources(shader_flags(style(
+        Band(BLUE, 1.0, pattern=Pattern(YELLOW, "time", 2.0, a, c))), True))["fragment_shader"]
+    assert ("pow(" in frag) == pow_
+    assert ("p.y *" in frag) == lateral and ("fw_b /" in frag) == lateral
+
+
 BAD = {
     "no_color": ('pattern = { length = 2 }', ["missing key 'color'"]),
     "fraction": ('pattern = { color = "#000000", fraction = 1.5 }', ["pattern.fraction = 1.5", "<= 1"]),

@@ -4,6 +4,7 @@ pictures drawn with and without it agree."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -184,3 +185,26 @@ def test_frames_reselect_only_when_the_view_changes():
         key, n = r._frame_key, r.n_indices
         r.render(s, (400, 320), Camera(azimuth=10))
         assert r._frame_key is key and r.n_indices == n == 3 * (2 * 500 + 1)
+
+
+def test_mapped_attribute_points_drop_where_their_colours_move_less_than_the_tolerance():
+    # a colormapped attribute changing fast along a straight line: a point whose value the
+    # linear interpolant misses by more than half a LUT step is still dropped when the colours
+    # around it move along the line by less than the pixel tolerance, so a line shown smaller
+    # keeps fewer points (a value tolerance alone keeps the same ones at every size)
+    n = 4000
+    x = np.linspace(-1, 1, n)
+    lines = Lines(np.c_[x, np.zeros(n), np.zeros(n)], [0, n], {"v": np.sinh(3 * x)})
+    s = style(Band(ColorMap("viridis", "v", (-10, 10)), 3.0), background=WHITE, antialias="none")
+    value_only = None
+    kept = []
+    for zoom, size in [(2.9, (400, 60)), (1.0, (100, 30))]:
+        cam = dataclasses.replace(FACE_ON, zoom=zoom)
+        with LineRenderer(lines, tolerance=0.0) as full, LineRenderer(lines) as lod:
+            a, b = full.render(s, size, cam), lod.render(s, size, cam)
+            kept.append(lod.n_drawn)
+            value_only = int(np.sum(lod._importance_of("v") > 0.5 * 20 / 512))
+        diff = np.abs(a.astype(int) - b.astype(int)).max(axis=2)
+        assert np.any(a[..., :3] != 255)
+        assert diff.max() <= 4, diff.max()  # colours shifted by < 0.25 px along the line
+    assert kept[1] < kept[0] <= value_only + 2

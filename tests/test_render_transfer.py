@@ -84,6 +84,14 @@ def test_strip_is_as_wide_as_widest_drawn_style_and_only_drawn_styles_compile():
     # bounds are uniforms: moving them keeps the program
     moved = tf_style([((-INF, 0.7), "focus"), ((0.7, INF), "context")])
     assert shader_flags(moved, True) == shader_flags(s, True)
+    # the strip stage narrows the strip to the widest style the point's ranges draw (context
+    # styles and discarded stretches rasterize fewer fragments); only with a transfer function
+    for stage in ("vertex", "geometry"):
+        src = build_sources(shader_flags(s, True, stage))
+        strip = src["geometry_shader" if stage == "geometry" else "vertex_shader"]
+        assert "float strip_half(" in strip and "u_tfhalf1" in strip and "u_tfhalf2" not in strip
+        assert "strip_half" not in build_sources(shader_flags(Style(styles=STYLES), True,
+                                                              stage))["vertex_shader"]
 
 
 def test_blend_mixes_colours_across_the_bound():

@@ -106,7 +106,8 @@ class LineRenderer:
             raise ValueError(f"{lines.n_points} points: too many to draw in one call")
         self._xyz = np.ascontiguousarray(lines.points, np.float64)
         self._importance: dict[str | None, np.ndarray] = {}  # None: geometry
-        self._placement: dict[tuple, np.ndarray] = {}  # geometry with placed attributes
+        self._displacement: dict[str, np.ndarray] = {}  # per attribute, world units
+        self._lod: tuple | None = None  # (key, importance) of the last level-of-detail input
         self._arc: np.ndarray | None = None
         self._frame_key = None
         self._ranges: dict[str, float] = {}
@@ -214,19 +215,35 @@ class LineRenderer:
             self._importance[name] = imp
         return imp
 
-    def _placement_of(self, names: tuple[str, ...]) -> np.ndarray:
-        """World-unit importance of the geometry and the displacement of the attributes that
-        place shapes and patterns: one threshold (pixels at the vertex's depth) serves both."""
-        imp = self._placement.get(names)
+    def _displacement_of(self, name: str) -> np.ndarray:
+        imp = self._displacement.get(name)
         if imp is None:
-            imp = self._importance_of(None)
-            for name in names:
-                if self._arc is None:
-                    self._arc = arc_parameter(self._xyz, self._starts, self._stops)
-                v = np.asarray(self._attr_values(name), np.float64)
-                imp = np.maximum(imp, displacement_importance(v, self._arc, self._starts,
-                                                              self._stops))
-            self._placement[names] = imp
+            if self._arc is None:
+                self._arc = arc_parameter(self._xyz, self._starts, self._stops)
+            v = np.asarray(self._attr_values(name), np.float64)
+            imp = displacement_importance(v, self._arc, self._starts, self._stops)
+            self._displacement[name] = imp
+        return imp
+
+    def _lod_importance(self, placed: tuple[str, ...], tols: dict[str, float]) -> np.ndarray:
+        """World-unit importance of every point, compared per frame with the pixel tolerance at
+        the point's depth: the geometry's; the displacement of the attributes that place shapes
+        and patterns; and for the attributes mapped to colour, width or a transfer function,
+        their displacement where their value error exceeds half its tolerance.  So a dropped
+        point either changes a mapped value by less than its tolerance, or shifts the mapped
+        picture along the line by less than the pixel tolerance (as dropping geometry moves the
+        line).  A tolerance of 0 (no known use) keeps every point where the value is not linear."""
+        key = (placed, tuple(sorted(tols.items())))
+        if self._lod is not None and self._lod[0] == key:
+            return self._lod[1]
+        imp = self._importance_of(None)
+        for name in placed:
+            imp = np.maximum(imp, self._displacement_of(name))
+        for name, t in tols.items():
+            off = self._importance_of(name) > 0.5 * t
+            shift = self._displacement_of(name) if t > 0 else np.float32(np.inf)
+            imp = np.maximum(imp, np.where(off, shift, np.float32(0.0)))
+        self._lod = (key, imp)
         return imp
 
     def _data_range(self, name: str) -> float:
@@ -258,13 +275,9 @@ class LineRenderer:
                    tuple(sorted(tols.items())), placed)
         if key == self._frame_key:
             return
-        extra = np.zeros(0, bool)
-        for name, t in tols.items():
-            keep = self._importance_of(name) > 0.5 * t
-            extra = keep if extra.size == 0 else extra | keep
-        imp = self._placement_of(placed) if tol > 0 else np.zeros(0, np.float32)
-        ids, idx = select(self._xyz, imp, cam.view, cam.px_scale, tol, extra, self._starts,
-                          self._stops)
+        imp = self._lod_importance(placed, tols) if tol > 0 else np.zeros(0, np.float32)
+        ids, idx = select(self._xyz, imp, cam.view, cam.px_scale, tol, np.zeros(0, bool),
+                          self._starts, self._stops)
         self.n_drawn = (idx.size - self._starts.size) // 2  # points drawn this frame
         if self.strips == "geometry":
             idx = adjacency(idx)
@@ -360,6 +373,10 @@ class LineRenderer:
                 "u_px": cam.px_scale,
                 "u_persp": 1.0 if cam.proj[3, 2] != 0 else 0.0,
             }
+            if style.transfer is not None:  # per range: the strip half-width its style needs
+                for i, rg in enumerate(style.transfer.ranges):
+                    w = style.styles[rg.style].total_width if rg.style is not None else 0.0
+                    uniforms[f"u_tfhalf{i}"] = style.scale * w * ss
             textures = [("u_points", self._points)]
             textures += [(f"u_attr{k}", self._attribute_texture(a)) for k, a in enumerate(attrs)]
             values = band_uniforms(style)  # numbers, colormap names, user shapes

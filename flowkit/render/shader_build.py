@@ -38,7 +38,9 @@ SHAPE_KINDS = ("none", "custom") + SHAPE_NAMES
 # where the view-oriented strips are built: the vertex shader (vertex pulling, one triangle strip
 # per run; the default: as fast or faster on llvmpipe) or a lines_adjacency geometry shader
 STRIP_STAGES = ("vertex", "geometry")
-TEMPLATE_WORDS = COLOR_KINDS + WIDTH_KINDS + SHAPE_KINDS + STRIP_STAGES
+# a colour pattern's lateral term a * lat^c: none (a = 0), linear (c = 1, no pow), power
+PATTERN_LATERAL = ("none", "linear", "power")
+TEMPLATE_WORDS = COLOR_KINDS + WIDTH_KINDS + SHAPE_KINDS + STRIP_STAGES + PATTERN_LATERAL[1:]
 
 
 @dataclass(frozen=True)
@@ -57,6 +59,7 @@ class BandFlags:
     pattern_attr: int = -1
     pattern_color: str = "const"  # COLOR_KINDS: the pattern's second colour
     pattern_color_attr: int = -1
+    pattern_lateral: str = "none"  # PATTERN_LATERAL: the stripes' slant across the band
 
 
 @dataclass(frozen=True)
@@ -133,6 +136,8 @@ def shader_flags(style: Style, msaa: bool, strip_stage: str = "vertex") -> Shade
                 pattern_attr=slots[pt.attribute] if pt is not None else -1,
                 pattern_color="cmap" if isinstance(pc, ColorMap) else "const",
                 pattern_color_attr=slots[pc.attribute] if isinstance(pc, ColorMap) else -1,
+                pattern_lateral=("none" if pt is None or pt.slope == 0 else
+                                 "linear" if pt.curve == 1 else "power"),
             ))
         styles.append(tuple(bands))
     aa = style.antialias != "none"

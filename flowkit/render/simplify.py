@@ -13,8 +13,11 @@ linear interpolant puts the vertex's value -- a pattern feature -- from where it
 0 wherever the attribute is linear in arc length (arc_length itself needs no vertices of its own)
 and inf at a local extremum (a value the interpolant would never reach).  Per frame a vertex is
 kept when its geometric or displacement importance exceeds half the pixel tolerance (converted
-to world units at the vertex's depth) or an attribute's importance exceeds half that attribute's
-tolerance; the ends of every run are always kept.  Halves because the kept set is the union of
+to world units at the vertex's depth), or when a mapped attribute's (colour, width, transfer)
+importance exceeds half that attribute's tolerance *and* its displacement exceeds half the
+pixel tolerance: a dropped vertex either changes the mapped value by less than its tolerance or
+moves the mapped picture along the line by less than the pixel tolerance (see
+``LineRenderer._lod_importance``); the ends of every run are always kept.  Halves because the kept set is the union of
 several DP sets, which at most doubles each one's error.
 
 Runs are the pieces of a line with consecutive finite points (>= 2 of them); the renderer draws

@@ -60,9 +60,15 @@ float band{{ g }}_width() {
 vec4 band{{ g }}_color(float lat, float bw) {
 {% if b.pattern %}
     // f_d = ((x / l + a lat^c) mod 1) - w: own colour where f_d < 0, the second where >= 0
+    // (the lateral term is compiled only as far as a and c need: a pow costs every fragment)
     vec4 p = u_pat{{ g }};
-    float u = g_attr{{ b.pattern_attr }} * p.x + p.y * pow(clamp(lat, 0.0, 1.0), p.z) + u_phase;
+{% if b.pattern_lateral == "none" %}
+    float u = g_attr{{ b.pattern_attr }} * p.x + u_phase;
+    float fu = fw_attr{{ b.pattern_attr }} * p.x;
+{% else %}
+    float u = g_attr{{ b.pattern_attr }} * p.x + p.y * {{ "clamp(lat, 0.0, 1.0)" if b.pattern_lateral == "linear" else "pow(clamp(lat, 0.0, 1.0), p.z)" }} + u_phase;
     float fu = fw_attr{{ b.pattern_attr }} * p.x + abs(p.y) * fw_b / max(bw, 1e-6);
+{% endif %}
     return mix({{ color_value(b.color, "", g, b.color_attr) }}, {{ color_value(b.pattern_color, "p", g, b.pattern_color_attr) }}, pattern_coverage(u, fu, p.w));
 {% else %}
     return {{ color_value(b.color, "", g, b.color_attr) }};

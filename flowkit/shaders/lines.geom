@@ -26,7 +26,15 @@ void main() {
     vec3 p1 = vs_view[1], p2 = vs_view[2];
     vec3 p0 = vs_valid[0] > 0.5 ? vs_view[0] : p1;
     vec3 p3 = vs_valid[3] > 0.5 ? vs_view[3] : p2;
-    vec4 o1 = strip_offset(p0, p1, p2), o2 = strip_offset(p1, p2, p3);
+{% if transfer %}
+{% set t = "vs_attr%d" % transfer_attr %}
+    float t1 = {{ t }}[1], t2 = {{ t }}[2];
+    float t0 = vs_valid[0] > 0.5 ? {{ t }}[0] : t1, t3 = vs_valid[3] > 0.5 ? {{ t }}[3] : t2;
+    vec4 o1 = strip_offset(p0, p1, p2, strip_half(t0, t1, t2));
+    vec4 o2 = strip_offset(p1, p2, p3, strip_half(t1, t2, t3));
+{% else %}
+    vec4 o1 = strip_offset(p0, p1, p2, u_half), o2 = strip_offset(p1, p2, p3, u_half);
+{% endif %}
     end_vertex(p1, o1, 1.0, 1);
     end_vertex(p1, o1, -1.0, 1);
     end_vertex(p2, o2, 1.0, 2);

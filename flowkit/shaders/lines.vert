@@ -39,9 +39,22 @@ vec3 view_point(int j) { return (u_view * vec4(texelFetch(u_points, texel(j), 0)
 // view-space position of point j, or `p` if there is none
 vec3 neighbour(int j, vec3 p) { return j < 0 ? p : view_point(j); }
 
+{% if transfer %}
+// transfer value of point j, or `t` if there is none
+float neighbour_value(int j, float t) {
+    return j < 0 ? t : texelFetch(u_attr{{ transfer_attr }}, texel(j), 0).r;
+}
+{% endif %}
+
 void main() {
     vec3 p = view_point(a_cur);
-    strip_vertex(p, strip_offset(neighbour(a_prev, p), p, neighbour(a_next, p)),
+{% if transfer %}
+    float t = texelFetch(u_attr{{ transfer_attr }}, texel(a_cur), 0).r;
+    float hw = strip_half(neighbour_value(a_prev, t), t, neighbour_value(a_next, t));
+{% else %}
+    float hw = u_half;
+{% endif %}
+    strip_vertex(p, strip_offset(neighbour(a_prev, p), p, neighbour(a_next, p), hw),
                  (gl_VertexID & 1) == 0 ? 1.0 : -1.0);
 {% for k in range(n_attrs) %}
     g_attr{{ k }} = texelFetch(u_attr{{ k }}, texel(a_cur), 0).r;

@@ -5,6 +5,13 @@
 {% macro code() %}
 uniform mat4 u_proj;
 uniform float u_half;       // strip half-width, style units (scale x widest style's total width)
+{% if transfer %}
+{% for r in transfer %}
+uniform vec2 u_tf{{ loop.index0 }};        // transfer range {{ loop.index0 }}: [x, y)
+uniform float u_tfhalf{{ loop.index0 }};   // half-width of the style it draws (0: none)
+{% endfor %}
+uniform float u_tfblend;    // half-width of the colour blend zone around a bound
+{% endif %}
 uniform float u_pad;        // extra half-width in pixels: room for analytic edge smoothing
 uniform float u_pixels;     // 1: style units are pixels, 0: world units
 uniform vec2 u_px;          // world size of one pixel at view depth z: u_px.x * (-z) + u_px.y
@@ -17,11 +24,29 @@ vec3 safe_dir(vec3 v, vec3 fallback) {
     return n > 1e-12 ? v / n : fallback;
 }
 
+{% if transfer %}
+// Strip half-width (style units) at a point whose adjacent segments carry transfer values
+// between those of the previous point, the point and the next: the widest style that a range
+// met by them (blend zones included) draws; 0 where every such range discards.  The fragments
+// of narrow context styles and of discarded stretches are then never rasterized.
+float strip_half(float ta, float t, float tc) {
+    float lo = min(min(ta, t), tc), hi = max(max(ta, t), tc);
+    if (isnan(lo) || isnan(hi)) return u_half;
+    float h = 0.0;
+{% for r in transfer %}
+{% set i = loop.index0 %}
+    if (hi >= u_tf{{ i }}.x - u_tfblend && lo < u_tf{{ i }}.y + u_tfblend) h = max(h, u_tfhalf{{ i }});
+{% endfor %}
+    return h;
+}
+{% endif %}
+
 // Offset from view-space point p to the strip's + edge (xyz) and that half-width in style units
-// (w).  a, c: the previous and next drawn points, equal to p where there is none.  The offset
-// depends only on the point and its neighbours, so the strips of consecutive segments share
-// their edge: joins are continuous (mitred, limit 2).
-vec4 strip_offset(vec3 a, vec3 p, vec3 c) {
+// (w), for a strip `hw` style units wide on each side.  a, c: the previous and next drawn
+// points, equal to p where there is none.  The offset depends only on the point and its
+// neighbours, so the strips of consecutive segments share their edge: joins are continuous
+// (mitred, limit 2).
+vec4 strip_offset(vec3 a, vec3 p, vec3 c, float hw) {
     vec3 e = normalize(mix(vec3(0.0, 0.0, 1.0), -p, u_persp));   // towards the viewer
     vec3 t_in = safe_dir(p - a, vec3(0.0)), t_out = safe_dir(c - p, vec3(0.0));
     vec3 t_seg = dot(t_in, t_in) > 0.0 ? t_in : safe_dir(t_out, vec3(1.0, 0.0, 0.0));
@@ -31,7 +56,7 @@ vec4 strip_offset(vec3 a, vec3 p, vec3 c) {
     s /= max(abs(dot(s, s_seg)), 0.5);  // mitre: the same for both segments (s bisects them)
     float px = u_px.x * (-p.z) + u_px.y;   // world size of a pixel at this depth
     float unit = mix(1.0, px, u_pixels);    // world size of one style unit
-    float half_world = u_half * unit + u_pad * px;
+    float half_world = hw > 0.0 ? hw * unit + u_pad * px : 0.0;
     return vec4(half_world * s, half_world / unit);
 }
 
