@@ -29,7 +29,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from ..fields.interp import locate_axis
 from .reasons import Reason
@@ -70,6 +73,67 @@ R_SEED = int(Reason.SEED_OUTSIDE)
 
 
 # -- cells ----------------------------------------------------------------------------------
+@intrinsic
+def _prefetch(typingctx, arr, idx):
+    """Ask the cache for the element ``arr.flat[idx]`` (C-contiguous ``arr``).  A hint only:
+    no value is read, results are unchanged, and an address off the array cannot fault."""
+    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        ary = context.make_array(sig.args[0])(context, builder, args[0])
+        item = context.get_abi_sizeof(context.get_data_type(sig.args[0].dtype))
+        off = builder.mul(context.cast(builder, args[1], sig.args[1], types.intp),
+                          context.get_constant(types.intp, item))
+        ptr = builder.gep(builder.bitcast(ary.data, ir.IntType(8).as_pointer()), [off])
+        i32 = ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [ptr.type, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0")
+        # read, keep in all cache levels, data cache
+        builder.call(fn, [ptr, ir.Constant(i32, 0), ir.Constant(i32, 3), ir.Constant(i32, 1)])
+        return context.get_dummy_value()
+
+    return types.void(arr, idx), codegen
+
+
+@njit(cache=True, inline="always")
+def _node_index(c, period, inv, x):
+    """Cell index of x on a uniform axis by one multiply (clamped; -1 for a non-uniform axis):
+    only to choose what to prefetch, so an index one off near a face does no harm."""
+    if inv <= 0.0 or not (abs(x) < 1e300):
+        return -1
+    n = c.size
+    r = (x - c[0]) * inv
+    if period > 0.0:
+        r = r % (n if c[0] + period - c[n - 1] > 0.0 else n - 1)
+    return min(max(int(r), 0), n - 2)
+
+
+@njit(cache=True, inline="always")
+def _prefetch_cell(vec, gx, gy, gz, period, inv, px, py, pz, last):
+    """Prefetch the corners of the cell holding (px, py, pz) on a uniform grid, unless it is
+    ``last`` (flat index of the cell's first corner, returned): the cache lines a later
+    ``_gather`` of that cell reads, fetched while the step computes instead of in its chain."""
+    i = _node_index(gx, period[0], inv[0], px)
+    j = _node_index(gy, period[1], inv[1], py)
+    k = _node_index(gz, period[2], inv[2], pz)
+    if i < 0 or j < 0 or k < 0:
+        return last
+    nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
+    base = ((i * ny + j) * nz + k) * 3
+    if base == last:
+        return last
+    # corners (i or i + 1, j or j + 1, k and k + 1), node 0 after the last on a wrapped axis;
+    # no integer division here: this runs for every stage of a step
+    di = (ny * nz * 3) if i + 1 < nx else -i * ny * nz * 3
+    dj = (nz * 3) if j + 1 < ny else -j * nz * 3
+    dk = 5 if k + 1 < nz else 2 - 3 * k  # last component of the (k + 1) corner
+    for b in (base, base + di, base + dj, base + di + dj):
+        _prefetch(vec, b)
+        _prefetch(vec, b + dk)
+    return base
+
+
 @njit(cache=True, inline="always")
 def _n_cells(c, period):
     n = c.size
@@ -106,7 +170,7 @@ def _gather(vec, ci, coef):
     nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
     i, j, k = ci[0], ci[1], ci[2]
     i1, j1, k1 = (i + 1) % nx, (j + 1) % ny, (k + 1) % nz
-    ok = True
+    bad = 0.0
     for c in range(3):
         v000 = vec[i, j, k, c]
         v100 = vec[i1, j, k, c]
@@ -125,9 +189,8 @@ def _gather(vec, ci, coef):
         coef[6, c] = v011 - v010 - v001 + v000
         coef[7, c] = v111 - v110 - v101 - v011 + v100 + v010 + v001 - v000
         for m in range(8):
-            if not math.isfinite(coef[m, c]):
-                ok = False
-    return ok
+            bad += coef[m, c] * 0.0  # NaN once any coefficient is not finite; no branches
+    return bad == 0.0
 
 
 @njit(cache=True)
@@ -424,6 +487,7 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
         n_rej = 0
         last_rej = False
         errp = 1e-4
+        errpb = errp ** beta
         h = fo[O_H0]
         if h <= 0.0 and sp > 0.0:
             # Hairer's initial step (Hairer, Nørsett & Wanner I, II.4), on the position only
@@ -476,6 +540,7 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
         tau = sf[l, S_TAU]
         h = sf[l, S_H]
         errp = sf[l, S_ERRP]
+        errpb = errp ** beta
         for a in range(4):
             k[0, a] = sf[l, S_K0 + a]
         n_acc = si[l, I_NACC]
@@ -548,6 +613,10 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
         if abs(hs) >= rem:
             hs = d * rem
             hit_lim = True
+        # fetch the cell where the step is headed (its end predicted along k0) now, so that
+        # their memory latency overlaps the arithmetic instead of stalling a dependent chain
+        _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + hs * k[0, 0],
+                       y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], -1)
 
         # stages
         for st in range(1, n_err):
@@ -588,12 +657,14 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
             if adaptive and a < 3:
                 sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(v1))
                 ea = 0.0
-                eb = 0.0
                 for m in range(n_err):
                     ea += me[m] * k[m, a]
-                    eb += me2[m] * k[m, a]
                 e5 += (ea / sc) ** 2
-                e3 += (eb / sc) ** 2
+                if has_e2:  # (e3 stays 0 without a second estimate: me2 is all zeros then)
+                    eb = 0.0
+                    for m in range(n_err):
+                        eb += me2[m] * k[m, a]
+                    e3 += (eb / sc) ** 2
         y1[0], y1[1], y1[2] = y1x, y1y, y1z
         if adaptive:
             if has_e2:  # Hairer's DOP853 estimate: |e5|^2 / sqrt(|e5|^2 + 0.01 |e3|^2)
@@ -646,10 +717,12 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
             if err == 0.0:
                 g = facmax
             else:
-                g = min(facmax, max(facmin, safety * errp ** beta / err ** expo1))
+                g = min(facmax, max(facmin, safety * errpb / err ** expo1))
             if last_rej:
                 g = min(g, 1.0)
-            errp = max(err, 1e-4)
+            if max(err, 1e-4) != errp:  # errp ** beta only when errp changes (often 1e-4)
+                errp = max(err, 1e-4)
+                errpb = errp ** beta
             hnext = hs * g
             if g >= 1.0 and abs(h) > abs(hnext):
                 hnext = h  # the step was cut by the cell cap or a limit, not by its error
@@ -815,3 +888,25 @@ def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
     for n in prange(active.size):
         _advance_line(active[n], n, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
                       mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B)
+
+
+@njit(cache=True, parallel=True)
+def pack(active, out_p, out_par, out_n, pts, t, s, owner):
+    """Copy the vertices of one pass (``out_n[n]`` of line ``active[n]`` in row n of the pass
+    buffers) into the flat arrays ``pts``/``t``/``s``/``owner``, line after line in the order
+    of ``active``."""
+    first = np.empty(active.size, np.int64)
+    r = 0
+    for n in range(active.size):
+        first[n] = r
+        r += out_n[n]
+    for n in prange(active.size):
+        r0 = first[n]
+        line = active[n]
+        for m in range(out_n[n]):
+            pts[r0 + m, 0] = out_p[n, m, 0]
+            pts[r0 + m, 1] = out_p[n, m, 1]
+            pts[r0 + m, 2] = out_p[n, m, 2]
+            t[r0 + m] = out_par[n, m, 0]
+            s[r0 + m] = out_par[n, m, 1]
+            owner[r0 + m] = line
