@@ -208,3 +208,33 @@ def test_mapped_attribute_points_drop_where_their_colours_move_less_than_the_tol
         assert np.any(a[..., :3] != 255)
         assert diff.max() <= 4, diff.max()  # colours shifted by < 0.25 px along the line
     assert kept[1] < kept[0] <= value_only + 2
+
+
+def test_split_by_range_puts_every_segment_in_exactly_one_strip_piece():
+    from flowkit.render.simplify import RESTART, adjacency, split_by_range
+
+    # two runs of 6 and 5 points; values cross the bound 0.5 between points, one NaN
+    pts = np.c_[np.arange(11.0), np.zeros(11), np.zeros(11)]
+    lines = Lines(pts, [0, 6, 11])
+    s, e = runs(lines)
+    v = np.array([0.1, 0.2, 0.7, 0.8, 0.9, 0.3, 0.6, 0.7, np.nan, 0.1, 0.2], np.float32)
+    ids, idx = select(pts, geometry_importance(pts, s, e), np.eye(4), (0.0, 1.0), 0.0,
+                      np.zeros(0, bool), s, e)  # tolerance 0: every point
+    out, counts = split_by_range(idx, ids, v, [-1e30, 0.5], [0.5, 1e30])
+    assert counts.sum() == out.size and len(counts) == 3
+    # range 0 (< 0.5), range 1 (>= 0.5), mixed: crossing the bound or touching the NaN
+    want = {0: {(0, 1), (9, 10)}, 1: {(2, 3), (3, 4), (6, 7)}, 2: {(1, 2), (4, 5), (7, 8), (8, 9)}}
+    first = 0
+    for g, c in enumerate(counts):
+        part = out[first:first + c]
+        first += c
+        assert part.size == 0 or part[-1] == RESTART
+        # each piece: both strip vertices of consecutive points; the segments it draws
+        quads = adjacency(part).reshape(-1, 4)
+        got = {(int(ids[q[1]]), int(ids[q[2]])) for q in quads}
+        assert got == want[g], (g, got)
+        # neighbours are those of the whole run, across piece ends (continuous joins)
+        for q in quads:
+            a, b = ids[q[1]], ids[q[2]]
+            assert ids[q[0]] == (a - 1 if a not in (0, 6) else -1)
+            assert ids[q[3]] == (b + 1 if b not in (5, 10) else -1)

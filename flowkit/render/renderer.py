@@ -26,6 +26,7 @@ from ..lines import Lines
 from .camera import Camera
 from .context import default_context, is_software
 from .shader_build import (
+    BIG,
     TEX_WIDTH,
     ShaderFlags,
     band_uniforms,
@@ -45,6 +46,7 @@ from .simplify import (
     placed_attributes,
     runs,
     select,
+    split_by_range,
 )
 from .style import Style, StyleError, load_style
 
@@ -117,7 +119,11 @@ class LineRenderer:
             self._ids = self.ctx.buffer(reserve=4)  # per frame: kept point ids (simplify.select)
             self._ibo = self.ctx.buffer(reserve=4)  # per frame: strip indices with restarts
         self.n_indices = self.n_drawn = 0
+        # this frame's draw calls: (line style drawn alone, or None: the whole style; first
+        # index, index count); a transfer function splits the strips by range (see _select)
+        self._draws: list[tuple[str | None, int, int]] = []
         self._attrs: dict[str, moderngl.Texture] = {}
+        self._f32: dict[str, np.ndarray] = {}
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._fbos: dict[tuple, tuple] = {}
         self.programs = program_cache(self.ctx)
@@ -164,6 +170,13 @@ class LineRenderer:
         tex = self.ctx.texture(size, components, data.tobytes(), dtype="f4")
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return tex
+
+    def _attr_f32(self, name: str) -> np.ndarray:
+        """The attribute as float32 (the values the shaders see), cached."""
+        v = self._f32.get(name)
+        if v is None:
+            v = self._f32[name] = np.ascontiguousarray(self._attr_values(name), np.float32)
+        return v
 
     def _attribute_texture(self, name: str) -> moderngl.Texture:
         buf = self._attrs.get(name)
@@ -273,14 +286,35 @@ class LineRenderer:
             placed = tuple(sorted(placed_attributes(style)))
             key = (cam.view.tobytes(), cam.proj.tobytes(), tuple(size), tol,
                    tuple(sorted(tols.items())), placed)
+        tf = style.transfer
+        key += (None if tf is None else (tf.attribute, tf.ranges, tf.blend),)
         if key == self._frame_key:
             return
         imp = self._lod_importance(placed, tols) if tol > 0 else np.zeros(0, np.float32)
         ids, idx = select(self._xyz, imp, cam.view, cam.px_scale, tol, np.zeros(0, bool),
                           self._starts, self._stops)
         self.n_drawn = (idx.size - self._starts.size) // 2  # points drawn this frame
+        groups: list[tuple[str | None, np.ndarray]] = [(None, idx)]
+        if tf is not None:
+            # segments wholly inside one range (blend zones excluded) are drawn by that range's
+            # style alone: each fragment then runs one style's code, not every drawn style's
+            # (a software rasterizer runs both sides of every branch), and the strip is as wide
+            # as that style; the rest by the whole style.  Ranges without a style: not drawn.
+            b = 0.5 * tf.blend
+            lo = [float(np.float32(max(r.range[0], -BIG))) + b for r in tf.ranges]
+            hi = [float(np.float32(min(r.range[1], BIG))) - b for r in tf.ranges]
+            split, counts = split_by_range(idx, ids, self._attr_f32(tf.attribute), lo, hi)
+            ends = np.cumsum(counts)
+            groups = [(r.style, split[e - c:e]) for r, c, e in zip(tf.ranges, counts, ends)
+                      if r.style is not None and c]
+            groups.append((None, split[ends[-1] - counts[-1]:ends[-1]]))
         if self.strips == "geometry":
-            idx = adjacency(idx)
+            groups = [(g, adjacency(i)) for g, i in groups]
+        self._draws, first = [], 0
+        for g, i in groups:
+            self._draws.append((g, first, i.size))
+            first += i.size
+        idx = np.concatenate([i for _, i in groups])
         for buf, data in ((self._ids, ids), (self._ibo, idx)):
             if buf.size < data.nbytes:
                 buf.orphan(data.nbytes)
@@ -385,15 +419,22 @@ class LineRenderer:
                 tex.use(location=unit)
                 uniforms[name] = unit
             uniforms.update({k: v for k, v in values.items() if not is_texture(v)})
-            for name, value in uniforms.items():
-                if name in prog:  # the compiler drops uniforms it can prove unused
-                    u = prog[name]
-                    if isinstance(value, bytes):
-                        u.write(value)
-                    else:
-                        u.value = value
             mode = moderngl.TRIANGLE_STRIP if self.strips == "vertex" else moderngl.LINES_ADJACENCY
-            self._vao(prog).render(mode, vertices=self.n_indices)
+            for alone, first, count in self._draws:
+                p = prog
+                if alone is not None:  # one line style without the transfer function
+                    p = self.programs.get(shader_flags(style, samples > 1, self.strips, alone))
+                    uniforms["u_half"] = style.scale * style.styles[alone].total_width * ss
+                else:
+                    uniforms["u_half"] = half * ss
+                for name, value in uniforms.items():
+                    if name in p:  # the compiler drops uniforms it can prove unused
+                        u = p[name]
+                        if isinstance(value, bytes):
+                            u.write(value)
+                        else:
+                            u.value = value
+                self._vao(p).render(mode, vertices=count, first=first)
         if ms is not None:
             ctx.copy_framebuffer(out, ms)
 

@@ -111,12 +111,15 @@ class ShaderFlags:
         return any(b.width == "map" for s in self.styles for b in s)
 
 
-def shader_flags(style: Style, msaa: bool, strip_stage: str = "vertex") -> ShaderFlags:
+def shader_flags(style: Style, msaa: bool, strip_stage: str = "vertex",
+                 only: str | None = None) -> ShaderFlags:
     """Flags for ``style``; ``msaa`` says whether the target is multisampled; ``strip_stage``
-    (STRIP_STAGES) which shader stage builds the strips."""
+    (STRIP_STAGES) which shader stage builds the strips.  ``only``: the program that draws line
+    style ``only`` alone, without the transfer function (for the segments that lie wholly in
+    one of its ranges); attribute slots and band numbers stay those of the whole style."""
     check_strip_stage(strip_stage)
     slots = {name: i for i, name in enumerate(style.attributes())}
-    used = style.used_styles()
+    used = style.used_styles() if only is None else [only]
     first = band_numbers(style)
     styles = []
     for name in used:
@@ -143,7 +146,7 @@ def shader_flags(style: Style, msaa: bool, strip_stage: str = "vertex") -> Shade
     aa = style.antialias != "none"
     transfer, tattr, blend = (), -1, False
     tf = style.transfer
-    if tf is not None:
+    if tf is not None and only is None:
         idx = [used.index(r.style) if r.style is not None else -1 for r in tf.ranges]
         order = sorted(range(len(tf.ranges)), key=lambda i: tf.ranges[i].range[0])
 

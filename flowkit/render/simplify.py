@@ -202,13 +202,83 @@ def select(points, imp, view, px, tol, extra, starts, stops) -> tuple[np.ndarray
     return _select(points, imp, zrow, np.asarray(px, np.float64), float(tol), extra, starts, stops)
 
 
+@numba.njit(cache=True)
+def _split(idx, ids, values, lo, hi, n_groups):
+    """Strip indices regrouped: segment m -> m+1 goes to range r when the transfer values of both
+    ends lie in [lo[r], hi[r]) (then every value between them does), else to group n_groups
+    (mixed, NaN).  Consecutive segments of one group form one strip piece (restart between
+    pieces); the pieces keep their element numbers, so neighbours stay those of the whole run."""
+    out = np.empty(3 * idx.size + 3, np.uint32)  # <= 2 per point + 3 per piece
+    counts = np.zeros(n_groups + 1, np.int64)
+    # pass 1: each segment's group (-1 before the first point of a run)
+    seg = np.full(idx.size, -1, np.int64)
+    prev = -1  # even element of the previous kept point in this run, -1 at a run start
+    for k in range(idx.size):
+        e = idx[k]
+        if e == RESTART:
+            prev = -1
+            continue
+        if e % 2:
+            continue
+        if prev >= 0:
+            va, vb = values[ids[prev + 2]], values[ids[e + 2]]
+            g = n_groups
+            for r in range(n_groups):
+                if lo[r] <= va < hi[r] and lo[r] <= vb < hi[r]:
+                    g = r
+                    break
+            seg[k] = g
+        prev = e
+    # pass 2: per group, pieces of consecutive segments
+    n = 0
+    for g in range(n_groups + 1):
+        start = n
+        prev, open_ = -1, False
+        for k in range(idx.size):
+            e = idx[k]
+            if e == RESTART or e % 2:
+                if e == RESTART:
+                    if open_:
+                        out[n] = RESTART
+                        n += 1
+                    prev, open_ = -1, False
+                continue
+            if seg[k] == g:
+                if not open_:
+                    out[n], out[n + 1] = prev, prev + 1
+                    n += 2
+                    open_ = True
+                out[n], out[n + 1] = e, e + 1
+                n += 2
+            elif open_:
+                out[n] = RESTART
+                n += 1
+                open_ = False
+            prev = e
+        if open_:
+            out[n] = RESTART
+            n += 1
+        counts[g] = n - start
+    return out[:n], counts
+
+
+def split_by_range(idx, ids, values, lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """(indices, counts): the strips of ``select`` regrouped by transfer range (see ``_split``);
+    group r < len(lo) holds the segments wholly inside [lo[r], hi[r]), the last group the rest."""
+    return _split(idx, ids, np.asarray(values, np.float32), np.asarray(lo, np.float64),
+                  np.asarray(hi, np.float64), len(lo))
+
+
 def adjacency(idx: np.ndarray) -> np.ndarray:
-    """lines_adjacency indices (uint32, 4 per segment) of the strips ``idx`` from ``select``, for
-    the geometry-shader path, which reads point ids at ids[j]: kept entry m (strip vertices
+    """lines_adjacency indices (uint32, 4 per segment) of the strips ``idx`` (from ``select`` or
+    ``split_by_range``), for the geometry-shader path, which reads point ids at ids[j]: kept
+    entry m (strip vertices
     2(m-1), 2(m-1)+1) is vertex 2m, and a segment m -> m+1 of a run is (2m-2, 2m, 2m+2, 2m+4);
     the neighbours outside the run read the -1 that ``select`` puts between runs."""
-    ev = idx[(idx != RESTART) & (idx % 2 == 0)].astype(np.int64)  # 2(m-1) per kept entry m
-    first = ev[:-1][np.diff(ev) == 2]  # segments: the next kept entry is in the same run
+    pos = np.flatnonzero((idx != RESTART) & (idx % 2 == 0))
+    ev = idx[pos].astype(np.int64)  # 2(m-1) per kept entry m
+    # segments: the next kept entry follows in the same strip (no restart between them)
+    first = ev[:-1][(np.diff(ev) == 2) & (np.diff(pos) == 2)]
     return (first[:, None] + np.arange(0, 8, 2)).astype(np.uint32).reshape(-1)
 
 
