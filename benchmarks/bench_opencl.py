@@ -6,7 +6,13 @@ Work: ABC flow on a bounded grid of 3 periods (``--nodes`` cells per period), se
 benchmarks/common.py (lines that stay inside), dopri5 at rtol 1e-6, arc length 10; then the heated
 room (built-in data), 2000 random seeds, length 20.  For each backend: wall time (after a warm-up
 that compiles), vertices/s and steps/s (accepted + rejected), the ratio to numba, and the largest
-vertex difference to the numba lines (float64 must be ~0).  Also the image3d path's field error:
+vertex difference to the numba lines (float64 must be ~0).  Then the per-vertex attributes
+(speed, vorticity, T on the room): numba (host attributes), OpenCL with the attributes computed
+on the host from the read-back vertices (``kernel_attributes=False``, the path before they moved
+into the kernel) and OpenCL computing them in the kernel; each against the same backend without
+attributes, so the attribute cost is a difference of walls measured in this run.  Then what
+overlaps on this device: the copies of each chunk against the kernels of the others, from
+OpenCL profiling events.  Also the image3d path's field error:
 hardware-filtered samples against exact trilinear interpolation, and what 8-bit filter weights
 (NVIDIA's texture units) would add, emulated.
 """
@@ -53,6 +59,57 @@ def compare(name, field, seeds, backends, **kw):
         dx = f"{np.abs(lines.points - ref.points).max():.2e}" if same else "(other vertex counts)"
         print(f"| {label} | {dt:.2f} | {lines.n_points} | {steps} | {lines.n_points / dt:.3g} | "
               f"{steps / dt:.3g} | {base / dt:.2f} | {dx} |")
+
+
+def attribute_cost(field, seeds, attrs, repeat=3, **kw):
+    """Wall with and without ``attrs`` for numba, OpenCL with host attributes, OpenCL with kernel
+    attributes (same vertices), best of ``repeat``: the attribute cost of each path, measured here."""
+    print(f"\n## attributes {', '.join(attrs)}: {len(seeds)} seeds, {field.grid.shape} nodes, "
+          + ", ".join(f"{k}={v}" for k, v in kw.items()))
+    print("| backend | attributes computed | wall s, no attributes | wall s, with | attribute cost s "
+          "| cost per vertex | vertices/s with | max rel. attribute diff to numba |")
+    print("|---|---|---|---|---|---|---|---|")
+    ref = None
+    for label, where, be in (("numba (all cores)", "host (numba)", "numba"),
+                             ("OpenCL float64", "host (numba)", OpenCLAdvance(kernel_attributes=False)),
+                             ("OpenCL float64", "in the kernel", OpenCLAdvance())):
+        # best of `repeat` interleaved pairs: the machine is shared, the cost is a difference
+        t0 = t1 = np.inf
+        for _ in range(repeat):
+            t0 = min(t0, run(field, seeds, be, **kw)[1])
+            lines, dt = run(field, seeds, be, attributes=attrs, **kw)
+            t1 = min(t1, dt)
+        if ref is None:
+            ref = lines
+        diff = max(np.nanmax(np.abs(lines.point_data[a] - ref.point_data[a]))
+                   / np.nanmax(np.abs(ref.point_data[a])) for a in attrs)
+        print(f"| {label} | {where} | {t0:.2f} | {t1:.2f} | {t1 - t0:.2f} | "
+              f"{1e9 * (t1 - t0) / lines.n_points:.0f} ns | {lines.n_points / t1:.3g} | {diff:.1e} |")
+
+
+def overlap(field, seeds, **kw):
+    """From profiling events: how much of the copy time runs while another chunk's kernel runs,
+    and how long read-backs start after their kernel ended."""
+    adv = OpenCLAdvance(profile=True, chunk=max(1, len(seeds) // 4))
+    flowkit.trace(field, seeds[:8], backend=adv, **kw)
+    adv.timeline.clear()
+    flowkit.trace(field, seeds, backend=adv, **kw)
+    ev = [(k, c, e.profile.start * 1e-9, e.profile.end * 1e-9) for k, c, e in adv.timeline]
+    runs = {c: (a, b) for k, c, a, b in ev if k == "run"}
+    copy = over = 0.0
+    delays = []
+    for k, c, a, b in ev:
+        if k == "run":
+            continue
+        copy += b - a
+        over += sum(max(0.0, min(b, rb) - max(a, ra)) for cc, (ra, rb) in runs.items() if cc != c)
+        if k == "down":
+            delays.append(a - runs[c][1])
+    kern = sum(b - a for a, b in runs.values())
+    print(f"\n## overlap on this device ({len(runs)} launches, chunks of {adv.chunk} lines): "
+          f"kernels {kern:.3f} s, copies {copy:.3f} s, of which {over:.3f} s "
+          f"({100 * over / max(copy, 1e-12):.0f} %) ran while another chunk's kernel ran; "
+          f"read-backs started {1e3 * np.median(delays):.1f} ms (median) after their kernel ended")
 
 
 def image_field_error(field, n=200000, seed=0):
@@ -130,6 +187,7 @@ def main(argv=None):
     if a.quick:
         a.seeds, a.nodes = 200, 16
     print(f"# OpenCL backend benchmark — {C.machine()}, load average {os.getloadavg()[0]:.2f}")
+    print("(no GPU in this environment: every OpenCL figure below is PoCL on the CPU)")
     ocl = OpenCLAdvance()
     print(f"OpenCL device: {ocl.describe()}")
     print("No GPU was lent to this run: the 1M seeds x 1000 steps GPU goal is not measured here.")
@@ -144,6 +202,8 @@ def main(argv=None):
     room = datasets.hotroom()
     rs = random_in(room, a.seeds, seed=1)
     compare("heated room", room, rs, backends, rtol=1e-6, max_length=20.0)
+    attribute_cost(room, rs, ("speed", "vorticity", "T"), rtol=1e-6, max_length=20.0)
+    overlap(room, rs, rtol=1e-6, max_length=20.0, attributes=("speed", "vorticity", "T"))
     err, levels, npos = weights_bits()
     print(f"\n## image3d linear filtering on this device: max |filtered - t| = {err:.2e} "
           f"({-np.log2(max(err, 2.0 ** -60)):.1f} bits), {levels} distinct values at {npos} positions")
@@ -151,6 +211,7 @@ def main(argv=None):
         e_dev, e8 = image_field_error(f)
         print(f"{name}: max |image - trilinear| / max|v| = {e_dev:.2e} on this device; "
               f"8-bit weights (emulated) would give {e8:.2e}")
+    print(f"\nload average at the end: {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

@@ -156,8 +156,9 @@ def test_uploads_only_what_attributes_need(fields):
 
     assert uploaded(("time", "speed", "velocity", "distance_to_seed")) == []
     assert uploaded(("T",)) == ["scalar"]
-    assert uploaded(("vorticity_magnitude",)) == ["stencils"]  # not the curl: a stencil table
-    assert uploaded(("p", "T", "vorticity")) == ["scalar", "scalar", "stencils"]
+    # the node curl is computed on the device from the field buffer: only a stencil table goes up
+    assert uploaded(("vorticity_magnitude",)) == ["curl"]
+    assert uploaded(("p", "T", "vorticity")) == ["curl", "scalar", "scalar"]
 
 
 def _table_deriv(grid, v, comp, ax):
@@ -194,14 +195,15 @@ def test_source_has_only_the_requested_attributes():
     none = _src()
     speed = _src(attrs=("speed",))
     vort = _src(attrs=("vorticity",), scalars=2, periodic=True)
-    for marker in ("vertex_attributes", "locate_axis_t", "a_speed", "node_curl", "scalar0",
+    for marker in ("vertex_attributes", "locate_axis_t", "a_speed", "curl", "scalar0",
                    "a_distance_to_seed", "seed[0]"):
         assert marker not in none, marker  # no attribute code at all without attributes
-    assert "vertex_attributes(O, at" in speed and "O->a_speed[at] = sqrt(u * u" in speed
-    for marker in ("node_curl", "st_node", "a_vorticity", "scalar0", "a_velocity",
+    assert "vertex_attributes(&O, at" in speed and "O->a_speed[at] = sqrt(u * u" in speed
+    for marker in ("curl", "st_node", "a_vorticity", "scalar0", "a_velocity",
                    "a_distance_to_seed"):
         assert marker not in speed, marker
-    assert "node_curl(O" in vort and "a_scalar1" in vort and "scalar2" not in vort
+    assert "__kernel void curl_nodes" in vort and "O->curl[node[c] * 3]" in vort
+    assert "a_scalar1" in vort and "scalar2" not in vort
     assert "a_speed" not in vort and "a_velocity" not in vort
     assert "pymod(x - c[0]" in vort  # the wrap of the vertex's cell on periodic axes
     dist = _src(attrs=("distance_to_seed",))

@@ -9,10 +9,11 @@ copy engines the transfers of one chunk overlap the kernel of the next.  The fie
 are uploaded once per field.
 
 Per-vertex attributes: ``trace`` asks the backend to ``bind_attributes(field, names)`` and gets a
-callable whose kernel also computes them as each vertex is written (``vertex.py``), into one
+callable whose kernel also computes them for the vertices it wrote (``vertex.py``), into one
 output buffer per attribute that is read back with the positions, into the columns of ``out_par``
 after (t, s); the host then only reorders them with the vertices.  Field data an attribute needs
-(scalar fields, the vorticity's derivative stencils) is uploaded only when one asks for it.
+(scalar fields; the stencil table from which the device computes the node curl once per field)
+is uploaded only when one asks for it.
 """
 
 from __future__ import annotations
@@ -121,22 +122,39 @@ class OpenCLAdvance:
             return self
         return _WithAttributes(self, field, vertex.Plan.of(field, names))
 
-    def _attribute_args(self, field, plan):
-        """Kernel arguments after ``B`` for ``plan``: per scalar field its buffer (and a None
-        for its output, per chunk), the vector buffer with an image3d field, the stencils."""
+    def _attribute_args(self, field, plan, flags, arrays, vec_buf):
+        """Kernel arguments after ``B`` for ``plan``: per scalar field its buffer (and a None for
+        its output, per chunk), the vector buffer with an image3d field, the node curl grid."""
         args = []
         for name in plan.scalars:
             arr = field.scalars[name]
-            args += [self._cached(field, "scalar", arr, lambda a=arr: self._buffer(a, self.dtype)), None]
-        if self.image and plan.needs_vector:
-            args.append(self._cached(field, "vector", field.vector,
-                                     lambda: self._buffer(field.vector, self.dtype)))
+            args += [self._cached(field, "scalar", arr, lambda a=arr: self._buffer(a, self.dtype)),
+                     None]
+        if self.image and plan.needs_vector:  # the image has no exact values: a buffer too
+            vec_buf = self._cached(field, "vector", field.vector,
+                                   lambda: self._buffer(field.vector, self.dtype))
+            if plan.needs_velocity:
+                args.append(vec_buf)
         if plan.needs_stencils:
-            def make():
-                nodes, weights, k = vertex.stencils(field.grid)
-                return [self._buffer(nodes, np.int32), self._buffer(weights, self.dtype), np.int32(k)]
-            args += self._cached(field, "stencils", field.grid, make)
+            args.append(self._cached(field, "curl", field.grid,
+                                     lambda: self._curl_grid(field, flags, arrays, vec_buf)))
         return args
+
+    def _curl_grid(self, field, flags, arrays, vec_buf):
+        """attributes.curl at the nodes, computed on the device from the field buffer already
+        there (only the stencil table, kilobytes, is uploaded); kept while the field is."""
+        cl = self.cl
+        nodes, weights, k = vertex.stencils(field.grid)
+        shape = field.grid.shape
+        curl = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE,
+                         int(np.prod(shape)) * 3 * self.dtype.itemsize)
+        knl = codegen.kernel(self.ctx, self.device, flags, arrays, "curl_nodes")
+        n = int(np.prod(shape))
+        glob = -(-n // self.local) * self.local
+        knl(self.q_run, (glob,), (self.local,), *(np.int32(s) for s in shape), vec_buf,
+            self._buffer(nodes, np.int32), self._buffer(weights, self.dtype), np.int32(k),
+            curl).wait()
+        return curl
 
     # -- one pass ----------------------------------------------------------------------------
     def __call__(self, *args):
@@ -157,7 +175,8 @@ class OpenCLAdvance:
             attrs=plan.attrs, scalars=len(plan.scalars))
         knl = codegen.kernel(self.ctx, self.device, flags, arrays)
         fbufs = self._field_buffers(gx, gy, gz, period, vec)
-        extra = bound.args if bound is not None else []
+        extra = [] if bound is None else self._attribute_args(bound.field, plan, flags, arrays,
+                                                              fbufs[3])
         outs = plan.outputs()
         local = min(self.local, knl.get_work_group_info(
             cl.kernel_work_group_info.WORK_GROUP_SIZE, self.device))
@@ -227,8 +246,8 @@ class _WithAttributes:
 
     def __init__(self, base: OpenCLAdvance, field, plan: vertex.Plan):
         self.base = base
+        self.field = field
         self.plan = plan
-        self.args = base._attribute_args(field, plan)
         self.n_columns = plan.n_columns
 
     def __call__(self, *args):

@@ -105,17 +105,18 @@ BUILD_OPTIONS = ("-cl-fp32-correctly-rounded-divide-sqrt",)
 _programs: dict = {}
 
 
-def kernel(ctx, device, flags: Flags, arrays):
-    """The compiled ``advance`` kernel for (flags, device), built once per process."""
+def kernel(ctx, device, flags: Flags, arrays, name: str = "advance"):
+    """The compiled kernel ``name`` (``advance``; ``curl_nodes`` with vorticity) for (flags,
+    device); each program is built once per process."""
     key = (flags, device.int_ptr)
-    prg = _programs.get(key)
-    if prg is None:
+    knls = _programs.get(key)
+    if knls is None:
         import pyopencl as cl
 
         src = render(flags, arrays)
         prg = cl.Program(ctx, src).build(options=list(BUILD_OPTIONS), devices=[device])
-        prg = _programs[key] = cl.Kernel(prg, "advance")
-    return prg
+        knls = _programs[key] = {k.function_name: k for k in prg.all_kernels()}
+    return knls[name]
 
 
 def cached_programs() -> int:

@@ -1,12 +1,14 @@
-"""Per-vertex attributes computed in the OpenCL kernel as each vertex is written.
+"""Per-vertex attributes computed in the OpenCL kernel, in the launch that writes the vertices.
 
 A :class:`Plan` says what the kernel computes for the requested names (the template flags
 ``attrs``/``scalars``), which field data it needs on the device (the vector buffer, scalar
-fields, the derivative stencils of the vorticity) and how the per-attribute outputs, read back
+fields, the node curl grid of the vorticity) and how the per-attribute outputs, read back
 into the columns of ``out_par`` after (t, s), become ``Lines.point_data``.  The formulas are
 those of ``flowkit.integrate.attributes``: trilinear samples of the field and its scalars, the
 curl of the node field (np.gradient's stencils, :func:`stencils`) trilinearly interpolated,
-Euclidean norms; ``time`` and ``arc_length`` are the kernel's own t and s.
+Euclidean norms; ``time`` and ``arc_length`` are the kernel's own t and s.  The node curl is
+computed on the device once per field (kernel ``curl_nodes``) from the field buffer and the
+stencil table of :func:`stencils`, so the vorticity uploads kilobytes, not a curl grid.
 """
 
 from __future__ import annotations
@@ -39,8 +41,12 @@ class Plan:
         return cls(names, attrs, scalars)
 
     @property
-    def needs_vector(self) -> bool:
-        return any(a in self.attrs for a in ("speed", "velocity", "vorticity", "vorticity_magnitude"))
+    def needs_velocity(self) -> bool:
+        return "speed" in self.attrs or "velocity" in self.attrs
+
+    @property
+    def needs_vector(self) -> bool:  # exact node values: the velocity, or the curl's stencils
+        return self.needs_velocity or self.needs_stencils
 
     @property
     def needs_stencils(self) -> bool:
