@@ -4,6 +4,8 @@ shapes are baked control points; the shader holds exactly the shapes used."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from line_probe import Probe, half_width
@@ -127,3 +129,34 @@ def test_shape_from_toml(tmp_path):
     assert a.shape == Shape("arrow", "time", 0.25)
     assert b.shape == Shape("custom", "arc_length", 1.0, ((0.0, 1.0), (1.0, 0.0)))
     assert s.attributes() == ["time", "arc_length"]
+
+
+@pytest.mark.parametrize("name", SHAPE_NAMES)
+def test_strip_narrowed_by_shapes_keeps_the_picture(name, monkeypatch):
+    # with every vertex drawn (5 points per period, so each point's two segments cover part of
+    # a period) the strip stage narrows the strip to the shapes' widest over each point's
+    # segments; a halo band outside the shaped core is moved by it.  The picture is the one
+    # drawn on the full-width strip, in both strip stages.
+    from line_probe import CAM, SIZE
+
+    from flowkit.render import LineRenderer, render_lines, renderer
+
+    n = 41
+    p = Probe(n=n, arc_length=np.linspace(0.0, 2.0, n))
+    st = style(Band(BLACK, 8.0, shape=Shape(name, "arc_length", L)), Band(RED, 3.0),
+               background=WHITE)
+    src = build_sources(shader_flags(st, True))["vertex_shader"]
+    assert f"shape_max_{name}" in src and "narrow_half" in src
+    narrowed = {s: render_lines(p.lines, st, SIZE, CAM, strips=s) for s in ("vertex", "geometry")}
+    with LineRenderer(p.lines, tolerance=0.0) as r:
+        narrowed["every vertex"] = r.render(st, SIZE, CAM)
+    flags = renderer.shader_flags
+    monkeypatch.setattr(renderer, "shader_flags",
+                        lambda *a, **k: dataclasses.replace(flags(*a, **k), narrow=False))
+    with LineRenderer(p.lines, tolerance=0.0) as r:
+        full = r.render(st, SIZE, CAM)
+        assert not r.prepare(st)[0].narrow_bands
+    assert np.any(full[..., 1] == 0) and np.any(full[..., 2] == 0)  # red halo and black core
+    for k, img in narrowed.items():
+        d = np.abs(img.astype(int) - full.astype(int)).max(axis=2)
+        assert np.mean(d <= 2) > 0.999 and np.sum(d > 2) <= 10, (k, np.sum(d > 2))

@@ -21,6 +21,7 @@ from .shapes import (
     ARROW_SHAFT,
     CURVE_SIZE,
     DASH_ON,
+    PEAKS,
     SHAPE_NAMES,
     ShapeCurve,
     curve_texture,
@@ -85,6 +86,7 @@ class ShaderFlags:
     transfer_attr: int = -1
     transfer_blend: bool = False
     strip_stage: str = "vertex"  # STRIP_STAGES
+    narrow: bool = True  # narrow the strip per point by the built-in shapes (see narrow_slots)
 
     @property
     def shapes(self) -> list[str]:
@@ -96,6 +98,16 @@ class ShaderFlags:
     def pattern_slots(self) -> list[int]:
         """Attribute slots patterns read (their screen derivatives filter the stripes)."""
         return sorted({b.pattern_attr for s in self.styles for b in s if b.pattern})
+
+    @property
+    def narrow_bands(self) -> list[BandFlags]:
+        """The bands whose built-in shapes narrow the strip at each point (the strip stage takes
+        the largest f(s) over the point's two segments): one drawn style, no transfer function
+        (that splits into single-style programs), some band with a built-in shape."""
+        if not self.narrow or self.transfer or len(self.styles) != 1:
+            return []
+        bands = list(self.styles[0])
+        return bands if any(b.shape not in ("none", "custom") for b in bands) else []
 
     @property
     def uses_phase(self) -> bool:
@@ -276,7 +288,11 @@ def build_sources(flags: ShaderFlags) -> dict[str, str]:
                curve_size=CURVE_SIZE, uses_colormap=flags.uses_colormap,
                uses_width_map=flags.uses_width_map, shapes=_checked(flags.shapes, "shapes"),
                uses_phase=flags.uses_phase, pattern_slots=flags.pattern_slots,
-               arrow_shaft=ARROW_SHAFT, arrow_head=ARROW_HEAD, dash_on=DASH_ON)
+               arrow_shaft=ARROW_SHAFT, arrow_head=ARROW_HEAD, dash_on=DASH_ON,
+               narrow_bands=_checked([asdict(b) for b in flags.narrow_bands], "narrow_bands"),
+               narrow_slots=sorted({b.shape_attr for b in flags.narrow_bands
+                                    if b.shape not in ("none", "custom")}),
+               peaks={k: [float(p) for p in v] for k, v in PEAKS.items()})
     out = {"vertex_shader": _env.get_template("lines.vert").render(ctx)}
     if flags.strip_stage == "geometry":
         out["geometry_shader"] = _env.get_template("lines.geom").render(ctx)

@@ -54,6 +54,11 @@ def _sine(s):
     return 0.5 + 0.5 * np.sin(2.0 * np.pi * s)
 
 
+# where each built-in f(s) has its local maxima (tops of its jumps included): with the ends of an
+# interval of s they give the largest f over the interval (the strip stage narrows the strip)
+PEAKS = {"dash": (0.0,), "arrow": (0.0, ARROW_HEAD), "tadpole": (0.75,),
+         "droplet": (0.9 * 0.5**0.5,), "diamond": (0.5,), "sine": (0.25,)}
+
 BUILTIN = {"dash": _dash, "arrow": _arrow, "tadpole": _tadpole, "droplet": _droplet,
            "diamond": _diamond, "sine": _sine}
 SHAPE_NAMES = tuple(BUILTIN)

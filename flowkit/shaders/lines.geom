@@ -32,6 +32,14 @@ void main() {
     float t0 = vs_valid[0] > 0.5 ? {{ t }}[0] : t1, t3 = vs_valid[3] > 0.5 ? {{ t }}[3] : t2;
     vec4 o1 = strip_offset(p0, p1, p2, strip_half(t0, t1, t2));
     vec4 o2 = strip_offset(p1, p2, p3, strip_half(t1, t2, t3));
+{% elif narrow_bands %}
+{% for k in narrow_slots %}
+    float x{{ k }}1 = vs_attr{{ k }}[1], x{{ k }}2 = vs_attr{{ k }}[2];
+    float x{{ k }}0 = vs_valid[0] > 0.5 ? vs_attr{{ k }}[0] : x{{ k }}1;
+    float x{{ k }}3 = vs_valid[3] > 0.5 ? vs_attr{{ k }}[3] : x{{ k }}2;
+{% endfor %}
+    vec4 o1 = strip_offset(p0, p1, p2, narrow_half({% for k in narrow_slots %}vec3(x{{ k }}0, x{{ k }}1, x{{ k }}2){{ ", " if not loop.last else "" }}{% endfor %}));
+    vec4 o2 = strip_offset(p1, p2, p3, narrow_half({% for k in narrow_slots %}vec3(x{{ k }}1, x{{ k }}2, x{{ k }}3){{ ", " if not loop.last else "" }}{% endfor %}));
 {% else %}
     vec4 o1 = strip_offset(p0, p1, p2, u_half), o2 = strip_offset(p1, p2, p3, u_half);
 {% endif %}

@@ -39,18 +39,28 @@ vec3 view_point(int j) { return (u_view * vec4(texelFetch(u_points, texel(j), 0)
 // view-space position of point j, or `p` if there is none
 vec3 neighbour(int j, vec3 p) { return j < 0 ? p : view_point(j); }
 
-{% if transfer %}
-// transfer value of point j, or `t` if there is none
-float neighbour_value(int j, float t) {
-    return j < 0 ? t : texelFetch(u_attr{{ transfer_attr }}, texel(j), 0).r;
+{% if transfer or narrow_bands %}
+// attribute value of point j, or `v` if there is none
+float neighbour_value(sampler2D attr, int j, float v) {
+    return j < 0 ? v : texelFetch(attr, texel(j), 0).r;
 }
+
+// slot k's values at the previous point, this one and the next
+{% for k in ([transfer_attr] if transfer else narrow_slots) %}
+vec3 around{{ k }}() {
+    float v = texelFetch(u_attr{{ k }}, texel(a_cur), 0).r;
+    return vec3(neighbour_value(u_attr{{ k }}, a_prev, v), v, neighbour_value(u_attr{{ k }}, a_next, v));
+}
+{% endfor %}
 {% endif %}
 
 void main() {
     vec3 p = view_point(a_cur);
 {% if transfer %}
-    float t = texelFetch(u_attr{{ transfer_attr }}, texel(a_cur), 0).r;
-    float hw = strip_half(neighbour_value(a_prev, t), t, neighbour_value(a_next, t));
+    vec3 t = around{{ transfer_attr }}();
+    float hw = strip_half(t.x, t.y, t.z);
+{% elif narrow_bands %}
+    float hw = narrow_half({% for k in narrow_slots %}around{{ k }}(){{ ", " if not loop.last else "" }}{% endfor %});
 {% else %}
     float hw = u_half;
 {% endif %}

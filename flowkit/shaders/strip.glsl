@@ -2,6 +2,7 @@
    lines.geom with "geometry"): uniforms, the mitred side offset at a point from its drawn
    neighbours, and the placement of one strip vertex.  Whichever stage builds the strip
    includes this once; the other stage holds none of it. #}
+{% import "shapes.glsl" as shapes_lib with context %}
 {% macro code() %}
 uniform mat4 u_proj;
 uniform float u_half;       // strip half-width, style units (scale x widest style's total width)
@@ -38,6 +39,48 @@ float strip_half(float ta, float t, float tc) {
     if (hi >= u_tf{{ i }}.x - u_tfblend && lo < u_tf{{ i }}.y + u_tfblend) h = max(h, u_tfhalf{{ i }});
 {% endfor %}
     return h;
+}
+{% endif %}
+{% if narrow_bands %}
+uniform float u_scale;
+uniform float u_phase;
+{% for b in narrow_bands %}
+{% if b.width == "map" %}
+uniform vec4 u_wmap{{ b.index }};
+{% else %}
+uniform float u_width{{ b.index }};
+{% endif %}
+{% if b.shape not in ("none", "custom") %}
+uniform float u_shapel{{ b.index }};
+{% endif %}
+{% endfor %}
+{% for name in shapes %}
+{{ shapes_lib.define(name) }}
+// largest shape_{{ name }}(s) for s = x / l + phase, x between the values in r (the point's and
+// its neighbours': its two segments), widened by 1/1000 period against rounding
+float shape_max_{{ name }}(vec3 r, float inv_l) {
+    float a = min(min(r.x, r.y), r.z) * inv_l + u_phase - 1e-3;
+    float b = max(max(r.x, r.y), r.z) * inv_l + u_phase + 1e-3;
+    if (!(b - a < 1.0)) return 1.0;  // a whole period (or NaN)
+    float fa = fract(a), fb = fa + (b - a);
+    float m = max(shape_{{ name }}(fa), shape_{{ name }}(fract(b)));
+{% for p in peaks[name] %}
+    if ((fa <= {{ p }} && {{ p }} <= fb) || {{ p + 1.0 }} <= fb) m = max(m, shape_{{ name }}({{ p }}));
+{% endfor %}
+    return m;
+}
+{% endfor %}
+
+// Strip half-width (style units) at a point: every band at its widest over the point's two
+// segments (shapes at their largest f there), so the fragments the shapes leave empty are
+// mostly never rasterized.  x<k>: attribute slot k at the previous point, the point, the next.
+float narrow_half({% for k in narrow_slots %}vec3 x{{ k }}{{ ", " if not loop.last else "" }}{% endfor %}) {
+    float h = 0.0;
+{% for b in narrow_bands %}
+{% set g = b.index %}
+    h += {{ "max(u_wmap%d.z, u_wmap%d.w)" % (g, g) if b.width == "map" else "u_width%d" % g }}{% if b.shape not in ("none", "custom") %} * shape_max_{{ b.shape }}(x{{ b.shape_attr }}, u_shapel{{ g }}){% endif %};
+{% endfor %}
+    return u_scale * h;
 }
 {% endif %}
 
