@@ -323,6 +323,60 @@ def test_clear_error_without_pyopencl_or_platform(monkeypatch):
         device.select_device("opencl")
 
 
+class _FakeDevice:
+    def __init__(self, name, ptr):
+        self.name, self.int_ptr, self.type = name, ptr, 2  # CL_DEVICE_TYPE_CPU
+
+
+class _FakePlatform:
+    def __init__(self, name, devs):
+        self.name, self._devs = name, devs
+
+    def get_devices(self):
+        return self._devs
+
+
+def test_default_device_skips_one_that_cannot_compile(monkeypatch):
+    # The wheel's PoCL (LLVM 14) on a CPU its LLVM does not know: listed, but every build fails.
+    old = _FakeDevice("pthread-AMD EPYC", 1)
+    good = _FakeDevice("pthread-skylake-avx512-AMD EPYC", 2)
+    monkeypatch.setattr(device, "platforms", lambda: [_FakePlatform("PoCL 3.0", [old]),
+                                                      _FakePlatform("PoCL 3.1", [good])])
+    monkeypatch.setattr(device, "_build_errors",
+                        {1: "error: unknown target CPU 'generic'", 2: None})
+    assert device.select_device("opencl") is good
+    assert device.select_device("opencl:0:0") is old  # named explicitly: taken as asked
+    device._build_errors[2] = "error: unknown target CPU 'generic'"
+    with pytest.raises(device.OpenCLUnavailable,
+                       match=r"can compile a kernel: error: unknown target CPU 'generic'.*"
+                             r"apt install pocl-opencl-icd"):
+        device.select_device("opencl")
+
+
+def test_probe_reads_the_build_error(monkeypatch):
+    import pyopencl as cl
+
+    class FailingProgram:
+        def __init__(self, ctx, src):
+            pass
+
+        def build(self, **kw):
+            raise cl.RuntimeError("clBuildProgram failed: BUILD_PROGRAM_FAILURE\n\n"
+                                  "Build on <dev>:\n\nerror: unknown target CPU 'generic'\n")
+
+    dev = device.select_device("opencl")
+    monkeypatch.setattr(device, "_build_errors", {})
+    monkeypatch.setattr(cl, "Program", FailingProgram)
+    assert not device.compiles(dev)
+    assert device._build_errors[dev.int_ptr] == "error: unknown target CPU 'generic'"
+    # a kernel build failing the same way names the cure, not just PoCL's log
+    monkeypatch.setattr(codegen, "_programs", {})
+    arrays = METHODS["dopri5"].kernel_arrays()
+    flags = codegen.Flags(method="dopri5", tableau=codegen.tableau_key(arrays))
+    with pytest.raises(device.OpenCLUnavailable, match="cannot compile kernels.*pocl-opencl-icd"):
+        codegen.kernel(cl.Context([dev]), dev, flags, arrays)
+
+
 def test_float64_refused_where_unsupported(monkeypatch):
     monkeypatch.setattr("flowkit.integrate.opencl.backend.supports_fp64", lambda d: False)
     assert OpenCLAdvance().dtype == np.float32  # default falls back to float32

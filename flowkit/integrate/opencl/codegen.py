@@ -18,6 +18,7 @@ import numpy as np
 from jinja2 import Environment, FileSystemLoader, StrictUndefined
 
 from .. import kernel as K
+from .device import CPU_HINT, OpenCLUnavailable
 
 TEMPLATES = Path(__file__).with_name("templates")
 
@@ -114,7 +115,13 @@ def kernel(ctx, device, flags: Flags, arrays, name: str = "advance"):
         import pyopencl as cl
 
         src = render(flags, arrays)
-        prg = cl.Program(ctx, src).build(options=list(BUILD_OPTIONS), devices=[device])
+        try:
+            prg = cl.Program(ctx, src).build(options=list(BUILD_OPTIONS), devices=[device])
+        except cl.RuntimeError as exc:
+            if "unknown target CPU" not in str(exc):
+                raise
+            raise OpenCLUnavailable(f"{device.name.strip()} cannot compile kernels: "
+                                    f"{CPU_HINT}") from None
         knls = _programs[key] = {k.function_name: k for k in prg.all_kernels()}
     return knls[name]
 

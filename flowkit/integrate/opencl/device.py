@@ -2,8 +2,12 @@
 
 PLATFORM and DEVICE are indices (as listed by ``flowkit info --devices``) or case-insensitive
 substrings of the platform / device name.  Without them the first GPU is taken, else the first
-device of any kind.  PoCL (``pip install 'flowkit[opencl]'``, which brings
-pocl-binary-distribution) gives every machine a CPU device.
+device of any kind, among the devices that can compile a kernel: the PoCL that pyopencl's wheel
+bundles is built on LLVM 14, which does not know CPUs newer than it (AMD Zen 5, say) and then
+fails every build with "unknown target CPU 'generic'", while Debian's PoCL
+(``scripts/system-deps.sh`` installs it) targets the nearest CPU it knows.  PoCL
+(``pip install 'flowkit[opencl]'``, which brings pocl-binary-distribution) gives every machine a
+CPU device.
 """
 
 from __future__ import annotations
@@ -11,6 +15,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 INSTALL_HINT = "install the opencl extra: pip install 'flowkit[opencl]' (brings pyopencl and PoCL)"
+CPU_HINT = ("this PoCL's LLVM does not know the CPU; install a PoCL that does (Debian/Ubuntu: "
+            "apt install pocl-opencl-icd, as scripts/system-deps.sh does) or pick another device "
+            "with --backend opencl:PLATFORM:DEVICE (flowkit info --devices lists them)")
 
 
 class OpenCLUnavailable(RuntimeError):
@@ -76,8 +83,33 @@ def select_device(spec: str = "opencl"):
         raise OpenCLUnavailable(f"no OpenCL device on {_listing(cands)}; {INSTALL_HINT}")
     if dkey is not None:
         return _pick(devs, dkey, "device", _listing(devs))
-    gpus = [d for d in devs if d.type & cl.device_type.GPU]
-    return (gpus or devs)[0]
+    working = [d for d in devs if compiles(d)]
+    if not working:
+        raise OpenCLUnavailable(f"no OpenCL device on {_listing(cands)} can compile a kernel: "
+                                f"{_build_errors[devs[0].int_ptr]}; {CPU_HINT}")
+    gpus = [d for d in working if d.type & cl.device_type.GPU]
+    return (gpus or working)[0]
+
+
+_build_errors: dict[int, str | None] = {}
+
+
+def compiles(dev) -> bool:
+    """Whether ``dev`` builds a one-line kernel (checked once per device and process)."""
+    if dev.int_ptr not in _build_errors:
+        cl = _cl()
+        try:
+            cl.Program(cl.Context([dev]), "__kernel void probe(__global int *a) { a[0] = 1; }"
+                       ).build(devices=[dev])
+            _build_errors[dev.int_ptr] = None
+        except cl.Error as exc:
+            _build_errors[dev.int_ptr] = _first_error(str(exc))
+    return _build_errors[dev.int_ptr] is None
+
+
+def _first_error(log: str) -> str:
+    lines = [ln.strip() for ln in log.splitlines() if ln.strip()]
+    return next((ln for ln in lines if ln.startswith("error")), lines[0] if lines else "")[:200]
 
 
 def _devices(plat):
