@@ -13,7 +13,7 @@ ls /usr/lib/*/dri/swrast_dri.so >/dev/null 2>&1 || missing+=(libgl1-mesa-dri)
 have_lib libGL.so.1 || missing+=(libgl1)
 have_lib libGLX_mesa.so.0 || missing+=(libglx-mesa0)
 command -v Xvfb >/dev/null || missing+=(xvfb xauth)
-[ -e /etc/OpenCL/vendors/pocl.icd ] || missing+=(pocl-opencl-icd)
+have_lib libpocl.so.2 || missing+=(pocl-opencl-icd)
 [ ${#missing[@]} -eq 0 ] && exit 0
 if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
     echo "installing system packages for headless OpenGL, the viewer's tests and OpenCL on the CPU: ${missing[*]}"
