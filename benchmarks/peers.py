@@ -40,7 +40,9 @@ def flowkit_run(field: Field, seeds, length, method="dopri5", rtol=1e-6, atol=No
     ends = lines.points[lines.offsets[1:] - 1].astype(np.float64)
     ok = lines.line_data["reason"] == Reason.MAX_LENGTH
     ends[~ok] = np.nan  # a line that stopped short has no point at arc length `length`
-    name = f"{method} tol={rtol:.0e} cell_aware={'on' if cell_aware else 'off'}"
+    fixed = method in ("rk4", "euler")  # fixed step: named by its step, not a tolerance
+    tol = f"step={options['step']:g}" if fixed else f"tol={rtol:.0e}"
+    name = f"{method} {tol} cell_aware={'on' if cell_aware else 'off'}"
     return Run("flowkit", name, ends, lines.n_points, t.wall, t.cpu, len(seeds),
                notes=[f"numba threads {numba.get_num_threads()}"])
 

@@ -169,7 +169,10 @@ def _gather(vec, ci, coef):
     """Coefficients of the trilinear polynomial of cell ci; False when a corner is not finite."""
     nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
     i, j, k = ci[0], ci[1], ci[2]
-    i1, j1, k1 = (i + 1) % nx, (j + 1) % ny, (k + 1) % nz
+    # upper corners (node 0 after the last on a wrapped axis), without integer division
+    i1 = i + 1 if i + 1 < nx else 0
+    j1 = j + 1 if j + 1 < ny else 0
+    k1 = k + 1 if k + 1 < nz else 0
     bad = 0.0
     for c in range(3):
         v000 = vec[i, j, k, c]
@@ -613,10 +616,20 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
         if abs(hs) >= rem:
             hs = d * rem
             hit_lim = True
-        # fetch the cell where the step is headed (its end predicted along k0) now, so that
-        # their memory latency overlaps the arithmetic instead of stalling a dependent chain
-        _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + hs * k[0, 0],
-                       y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], -1)
+        # fetch the cells the step is headed for (predicted along k0) now, so that their memory
+        # latency overlaps the arithmetic instead of stalling a dependent chain: cell-aware, the
+        # end's (gathered at the face); plain, each stage's (a step spans cells, each stage
+        # gathers its own)
+        if aware:
+            _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + hs * k[0, 0],
+                           y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], -1)
+        else:
+            last = -1
+            for st in range(1, max(n_err, fs + 1)):  # every step's stages (the last: f(y1))
+                if mc[st] != mc[st - 1]:
+                    ch = mc[st] * hs
+                    last = _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + ch * k[0, 0],
+                                          y[1] + ch * k[0, 1], y[2] + ch * k[0, 2], last)
 
         # stages
         for st in range(1, n_err):

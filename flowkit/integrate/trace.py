@@ -11,6 +11,7 @@ negative before the seed.
 from __future__ import annotations
 
 import sys
+import weakref
 
 import numpy as np
 
@@ -121,7 +122,17 @@ def _typical_speed(field: Field, max_nodes: int = 1 << 17) -> float:
     """Field.typical_speed on a strided subsample of at most ~max_nodes nodes: it only scales
     defaults (stagnation threshold, minimum and fixed steps), and the full median costs seconds
     on large grids (a sample of 2^20 nodes cost ~45 ms of every trace on 385^3 nodes; 2^17 ~5 ms,
-    the median of 10^5 speeds is still good to a few 0.1 %)."""
+    the median of 10^5 speeds is still good to a few 0.1 %).  Kept with the field for its vector
+    array (~5 ms of every later trace through it; an array changed in place is not noticed)."""
+    memo = getattr(field, "_typical_speed_memo", None)
+    if memo is not None and memo[0]() is field.vector:
+        return memo[1]
+    value = _sampled_speed(field, max_nodes)
+    field._typical_speed_memo = (weakref.ref(field.vector), value)
+    return value
+
+
+def _sampled_speed(field: Field, max_nodes: int) -> float:
     shape = np.array(field.grid.shape)
     stride = max(1, int(np.ceil((shape.prod() / max_nodes) ** (1 / 3))))
     v = field.vector[::stride, ::stride, ::stride]
