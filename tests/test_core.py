@@ -84,6 +84,24 @@ def test_nan_cells_say_so():
     assert list(st) == [NAN_CELL, NAN_CELL, INSIDE, NAN_CELL]
 
 
+def test_a_point_on_the_face_of_a_nan_cell_samples_the_face():
+    """On a face the trilinear interpolant is the face's bilinear one: the corners off the face
+    carry weight 0 and a NaN there does not count (the cell itself is still a NaN cell)."""
+    g = Grid.regular(0, 1.0, (5, 5, 5))
+    vec = np.stack(np.meshgrid(g.x, g.y, g.z, indexing="ij"), axis=-1) * [1.0, 2.0, 3.0]
+    T = vec[..., 0] + vec[..., 1]
+    vec[3:] = np.nan
+    T[3:] = np.nan
+    f = Field(g, vec, scalars={"T": T})
+    pts = [[2.0, 1.25, 0.5], [2.0, 3.0, 4.0], [2.0 + 1e-9, 1.25, 0.5]]
+    v, st = f.sample(pts)
+    assert list(st) == [INSIDE, INSIDE, NAN_CELL]
+    np.testing.assert_allclose(v[:2], [[2.0, 2.5, 1.5], [2.0, 6.0, 12.0]], rtol=1e-15)
+    t, st = f.sample_scalar("T", pts)
+    assert list(st) == [INSIDE, INSIDE, NAN_CELL]
+    np.testing.assert_allclose(t[:2], [4.5, 8.0], rtol=1e-15)  # x + 2 y
+
+
 @pytest.mark.parametrize("bad", [[0, 1, 1, 2], [0, 2, 1], [0, np.nan, 1]])
 def test_bad_coordinates_are_named(bad):
     with pytest.raises(GridError, match="coordinate 'y'"):

@@ -96,3 +96,35 @@ def test_attributes_in_arc_length_parameterisation():
     np.testing.assert_allclose(pd["time"], pd["arc_length"] / (OMEGA * 2.0), rtol=1e-8)
     assert pd["arc_length"][-1] == pytest.approx(3.0, abs=1e-9)
     assert isinstance(f, Field)
+
+
+def nan_face_field() -> Field:
+    """Uniform flow (1, 0.2, 0) and T = i + 0.1 j on 6x5x4 nodes 0.2 apart, NaN from x = 0.8 on:
+    the cells from x = 0.6 on have a NaN corner."""
+    g = Grid.regular((0, 0, 0), 0.2, (6, 5, 4))
+    v = np.broadcast_to(np.array([1.0, 0.2, 0.0]), g.shape + (3,)).copy()
+    T = np.fromfunction(lambda i, j, k: i + 0.1 * j, g.shape)
+    v[4:] = np.nan
+    T[4:] = np.nan
+    return Field(g, v, scalars={"T": T})
+
+
+NAN_FACE_SEEDS = np.array([[0.1, 0.1, 0.1], [0.1, 0.5, 0.3]])
+
+
+@pytest.mark.parametrize("aware", [True, False])
+def test_a_line_stopped_by_nan_cells_keeps_finite_attributes_at_its_end(aware):
+    """The last vertex lies on (cell-aware) or just before the face of the first NaN cell: the
+    interpolant there is the face's, whose corners are finite, so its attributes are too."""
+    from flowkit.integrate.reasons import Reason
+
+    lines = trace(nan_face_field(), NAN_FACE_SEEDS, cell_aware=aware,
+                  attributes=("speed", "velocity", "T"))
+    assert lines.line_data["reason"].tolist() == [Reason.NAN_FIELD] * 2
+    end = lines.offsets[1:] - 1
+    np.testing.assert_allclose(lines.points[end, 0], 0.6, atol=1e-9)
+    np.testing.assert_allclose(lines.point_data["speed"][end], np.hypot(1.0, 0.2), rtol=1e-12)
+    np.testing.assert_allclose(lines.point_data["velocity"][end], [[1.0, 0.2, 0.0]] * 2, rtol=1e-12)
+    # T = i + 0.1 j at the nodes, linear: 3 + y / 2 on the face x = 0.6
+    np.testing.assert_allclose(lines.point_data["T"][end], 3 + 0.5 * lines.points[end, 1], rtol=1e-9)
+    assert all(np.all(np.isfinite(a)) for a in lines.point_data.values())

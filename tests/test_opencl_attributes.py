@@ -223,3 +223,14 @@ def test_attribute_flags_are_part_of_the_program_key(fields, ocl64, monkeypatch)
     assert codegen.cached_programs() == 3
     keys = {k[0] for k in codegen._programs}
     assert {(k.attrs, k.scalars) for k in keys} == {((), 0), (("speed",), 0), (("speed",), 1)}
+
+
+@pytest.mark.parametrize("aware", [True, False])
+def test_a_line_stopped_by_nan_cells_keeps_finite_attributes_on_opencl(ocl64, aware):
+    from test_integrate_attributes import NAN_FACE_SEEDS, nan_face_field
+
+    f = nan_face_field()
+    ref, got = _both(f, NAN_FACE_SEEDS, ocl64, attributes=("speed", "velocity", "T"),
+                     cell_aware=aware)
+    assert_same(ref, got, _extent(f))
+    assert all(np.all(np.isfinite(a)) for a in got.point_data.values())

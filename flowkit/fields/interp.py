@@ -84,12 +84,12 @@ def trilinear_vector(vec, i, j, k, tx, ty, tz):
         jj = j1 if c & 2 else j
         kk = k1 if c & 4 else k
         w = (tx if c & 1 else 1.0 - tx) * (ty if c & 2 else 1.0 - ty) * (tz if c & 4 else 1.0 - tz)
-        out0 += w * vec[ii, jj, kk, 0]
-        out1 += w * vec[ii, jj, kk, 1]
-        out2 += w * vec[ii, jj, kk, 2]
+        if w != 0.0:  # on a face, edge or node the corners off it do not count, NaN or not
+            out0 += w * vec[ii, jj, kk, 0]
+            out1 += w * vec[ii, jj, kk, 1]
+            out2 += w * vec[ii, jj, kk, 2]
     bad = not (np.isfinite(out0) and np.isfinite(out1) and np.isfinite(out2))
-    if bad:
-        # a zero weight times NaN is still NaN, so any NaN corner poisons the sum: say so
+    if bad:  # a NaN corner that counts poisons the sum: say so
         return np.nan, np.nan, np.nan, True
     return out0, out1, out2, False
 
@@ -107,7 +107,8 @@ def trilinear_scalar(arr, i, j, k, tx, ty, tz):
         jj = j1 if c & 2 else j
         kk = k1 if c & 4 else k
         w = (tx if c & 1 else 1.0 - tx) * (ty if c & 2 else 1.0 - ty) * (tz if c & 4 else 1.0 - tz)
-        out += w * arr[ii, jj, kk]
+        if w != 0.0:
+            out += w * arr[ii, jj, kk]
     if not np.isfinite(out):
         return np.nan, True
     return out, False
