@@ -263,3 +263,16 @@ def test_cli_trace_writes_lines(tmp_path, capsys):
     assert len(back) == 5 and set(back.point_data) == {"T", "arc_length"}
     assert main(["trace", str(tmp_path / "f.npz"), "-o", str(out), "--attributes", "nope"]) == 2
     assert "unknown attribute 'nope'" in capsys.readouterr().err
+
+
+def test_typical_speed_is_kept_with_the_vector_array_it_was_sampled_from():
+    """The sample behind the default stagnation threshold and steps is computed once per vector
+    array: a second trace reuses it, a field given a new array samples again."""
+    from flowkit.integrate import trace as T
+
+    f = _uniform(U=(2.0, 0.0, 0.0))
+    assert T._typical_speed(f) == 2.0
+    f.vector[...] = 5.0  # changed in place: not noticed (documented)
+    assert T._typical_speed(f) == 2.0
+    f.vector = np.full_like(f.vector, 3.0)  # a new array
+    assert T._typical_speed(f) == pytest.approx(np.sqrt(27.0), rel=1e-15)
