@@ -82,7 +82,7 @@ def main(argv=None) -> int:
                 trace_distributed(src, seeds[:200], tmp / "w.h5", opts, client=c, chunk_seeds=50,
                                   progress=False)
                 warm = time.perf_counter() - t0
-                chunk = -(-args.seeds // 16)  # 16 chunks, 8 per worker with 2 (+ the guided tail)
+                chunk = -(-args.seeds // 16)  # 16 tasks: 8 per worker with 2 workers
 
                 phases = []
 

@@ -177,11 +177,10 @@ def ratio_table(rows) -> str:
            "|---|---|---|---|---|---|---|"]
     dopri5 = [r for r in rows if r["tool"] != "flowkit" or r["setting"].startswith("dopri5")]
     for level in LEVELS:
-        for fk_rows, label in ((rows, ""), (dopri5, " (dopri5 only)")):
-            fk = C.fastest_at(fk_rows, "flowkit", level)
-            if label and fk == C.fastest_at(rows, "flowkit", level):
-                continue  # dopri5 is already flowkit's fastest here
-            out += _ratio_rows(rows, tools, level, fk, label)
+        fk, fk5 = C.fastest_at(rows, "flowkit", level), C.fastest_at(dopri5, "flowkit", level)
+        out += _ratio_rows(rows, tools, level, fk, "")
+        if fk5 is not fk:  # else dopri5 is already flowkit's fastest here
+            out += _ratio_rows(rows, tools, level, fk5, " (dopri5 only)")
     return "\n".join(out)
 
 

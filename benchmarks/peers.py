@@ -31,6 +31,7 @@ def flowkit_run(field: Field, seeds, length, method="dopri5", rtol=1e-6, atol=No
     import numba
 
     from flowkit import trace
+    from flowkit.integrate.methods import get_method
     from flowkit.integrate.reasons import Reason
 
     atol = rtol if atol is None else atol
@@ -40,8 +41,8 @@ def flowkit_run(field: Field, seeds, length, method="dopri5", rtol=1e-6, atol=No
     ends = lines.points[lines.offsets[1:] - 1].astype(np.float64)
     ok = lines.line_data["reason"] == Reason.MAX_LENGTH
     ends[~ok] = np.nan  # a line that stopped short has no point at arc length `length`
-    fixed = method in ("rk4", "euler")  # fixed step: named by its step, not a tolerance
-    tol = f"step={options['step']:g}" if fixed else f"tol={rtol:.0e}"
+    # a fixed-step method is named by its step, not a tolerance
+    tol = f"tol={rtol:.0e}" if get_method(method).adaptive else f"step={options.get('step')}"
     name = f"{method} {tol} cell_aware={'on' if cell_aware else 'off'}"
     return Run("flowkit", name, ends, lines.n_points, t.wall, t.cpu, len(seeds),
                notes=[f"numba threads {numba.get_num_threads()}"])

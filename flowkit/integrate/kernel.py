@@ -451,6 +451,7 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
     r_ind = R_MAXTIME if param == 0 else R_MAXLEN
     r_dep = R_MAXLEN if param == 0 else R_MAXTIME
     expo1 = 1.0 / kexp - 0.75 * beta
+    n_step = max(n_err, fs + 1)  # the stages of every step (the last one: f(y1))
     d = dirs[l]
     spacing, phase = spacings[l], phases[l]
     out_n[slot] = 0
@@ -625,7 +626,7 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
                            y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], -1)
         else:
             last = -1
-            for st in range(1, max(n_err, fs + 1)):  # every step's stages (the last: f(y1))
+            for st in range(1, n_step):
                 if mc[st] != mc[st - 1]:
                     ch = mc[st] * hs
                     last = _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + ch * k[0, 0],
