@@ -70,6 +70,63 @@ def test_toml_writer_round_trips_exactly(style, tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name != "s.toml"]  # atomic: no temp left
 
 
+
+COMMENTED = """\
+# my halo style
+version = 1
+background = "#FFFFFF"   # upper case, not as flowkit writes it
+antialias = "none"
+
+[[bands]]  # core
+color = [0, 0, 0]
+width = 1.5
+
+[[bands]]  # halo
+color = "#ffffff"
+width = 2.0
+depth_offset = 0.01
+"""
+
+
+def test_save_keeps_comments_and_spelling(tmp_path):
+    base = style_from_dict(tomllib.loads(COMMENTED))
+    out = save_style(base, tmp_path / "same.toml", keep=COMMENTED)
+    assert out.read_text() == COMMENTED  # unedited: the file as it was
+    edited = replace_at(replace_at(base, ("styles", "default", "bands", 1, "width"), 3.5),
+                        ("scale", ), 2.0)  # a key the file does not spell out
+    text = save_style(edited, tmp_path / "s.toml", keep=COMMENTED).read_text()
+    assert load_style(tmp_path / "s.toml") == edited
+    for kept in ("# my halo style", "# upper case, not as flowkit writes it",
+                 "[[bands]]  # core", "[[bands]]  # halo", "color = [0, 0, 0]",
+                 'background = "#FFFFFF"'):
+        assert kept in text, kept
+    assert "width = 3.5" in text and "width = 2.0" not in text and "scale = 2.0" in text
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "examples/styles").glob("*.toml")),
+                         ids=lambda p: p.name)
+def test_save_keeps_gallery_files(path, tmp_path):
+    """Every gallery style, one parameter edited: read back equal, every comment line kept."""
+    text = path.read_text()
+    style = load_style(path)
+    name = next(iter(style.styles))
+    edited = replace_at(style, ("styles", name, "bands", 0, "depth_offset"),
+                        style.styles[name].bands[0].depth_offset + 0.5)
+    out = save_style(edited, tmp_path / path.name, keep=text)
+    assert load_style(out) == edited
+    comments = [ln.strip() for ln in text.splitlines() if ln.strip().startswith("#")]
+    assert comments and all(c in out.read_text() for c in comments)
+
+
+def test_save_falls_back_when_the_layout_differs(tmp_path):
+    """A file laid out unlike style_to_dict ([styles.default] instead of [[bands]]) cannot be
+    edited in place once the edit changes the layout: the whole style is written instead."""
+    text = COMMENTED.replace("[[bands]]", "[[styles.default.bands]]")
+    base = style_from_dict(tomllib.loads(text))
+    edited = replace_at(base, ("styles", "default", "bands", 0, "width"), 4.0)
+    out = save_style(edited, tmp_path / "s.toml", keep=text)
+    assert load_style(out) == edited
+
 def test_toml_writer_forms():
     d = style_to_dict(RICH)
     assert d["background"] == "transparent" and "bands" not in d

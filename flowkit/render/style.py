@@ -642,11 +642,57 @@ def dump_style(data: Style | dict) -> str:
     return tomli_w.dumps(style_to_dict(data) if isinstance(data, Style) else data)
 
 
-def save_style(data: Style | dict, path: str | Path) -> Path:
-    """Write a style as TOML atomically (temp file beside it + rename)."""
+def save_style(data: Style | dict, path: str | Path, *, keep: str | None = None) -> Path:
+    """Write a style as TOML atomically (temp file beside it + rename).
+
+    ``keep``: the text of the file the style was read from.  Its comments, order and spelling are
+    kept and only the values the style changed are rewritten; where that cannot give the style
+    back (the file laid out unlike ``style_to_dict``), the whole style is written plainly.
+    """
     from ..io.atomic import atomic_path
 
     text = dump_style(data)
+    if keep is not None and isinstance(data, Style):
+        text = _edit_text(keep, data) or text
     with atomic_path(path) as tmp:
         Path(tmp).write_text(text, encoding="utf-8")
     return Path(path)
+
+
+def _edit_text(text: str, style: Style) -> str | None:
+    """``text`` (a style file) with the values that differ from ``style`` replaced, or None."""
+    import tomlkit
+    from tomlkit.exceptions import TOMLKitError
+
+    try:
+        doc = tomlkit.parse(text)
+        old = style_to_dict(style_from_dict(tomllib.loads(text)))
+    except (TOMLKitError, tomllib.TOMLDecodeError, StyleError):
+        return None
+    _edit_tables(doc, old, style_to_dict(style))
+    out = tomlkit.dumps(doc)
+    try:  # the edited file must read back as the style, or it is not written
+        return out if style_from_dict(tomllib.loads(out)) == style else None
+    except (tomllib.TOMLDecodeError, StyleError):
+        return None
+
+
+def _edit_tables(doc, old: dict, new: dict) -> None:
+    """Make the tomlkit table ``doc`` (read as ``old``) read as ``new``, touching only what
+    differs: tables and arrays of tables of the same length are edited entry by entry."""
+    for key in old.keys() - new.keys():
+        doc.pop(key, None)
+    for key, value in new.items():
+        was, cur = old.get(key), doc.get(key)
+        if key in old and was == value:
+            continue
+        if isinstance(value, dict) and isinstance(was, dict) and isinstance(cur, dict):
+            _edit_tables(cur, was, value)
+        elif (isinstance(value, list) and isinstance(was, list) and isinstance(cur, list)
+              and len(value) == len(was) == len(cur)
+              and all(isinstance(x, dict) for x in (*value, *was, *cur))):
+            for c, w, v in zip(cur, was, value):
+                _edit_tables(c, w, v)
+        else:
+            doc[key] = value
+

@@ -36,15 +36,16 @@ class ViewerError(RuntimeError):
     """No window could be opened (no display, no OpenGL 3.3); the message says what to do."""
 
 
-def read_style(path: Path) -> tuple[Style, dict]:
-    """The Style of a TOML file and its parsed tables (written back unchanged on "save")."""
+def read_style(path: Path) -> tuple[Style, str]:
+    """The Style of a TOML file and its text (what "save" keeps: comments, order, spelling)."""
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise StyleError(f"{path}: not valid TOML: {e}") from None
     except UnicodeDecodeError as e:
         raise StyleError(f"{path}: not UTF-8 text: {e}") from None
-    return style_from_dict(data, where=str(path)), data
+    return style_from_dict(data, where=str(path)), text
 
 
 def unreadable(lines: Lines, style: Style) -> str | None:
@@ -79,7 +80,7 @@ class Viewer:
                  title: str | None = None):
         self.lines = lines
         self.style_path = Path(style_path)
-        style, data = read_style(self.style_path)  # a bad style at start is the caller's error
+        style, text = read_style(self.style_path)  # a bad style at start is the caller's error
         problem = unreadable(lines, style)
         if problem is not None:
             raise StyleError(f"{self.style_path}: {problem}")
@@ -106,7 +107,7 @@ class Viewer:
         self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else Path.cwd()
 
         self.style = self.file_style = style  # in effect / last good from the file
-        self.source = data  # the file's tables, written back by save_style when nothing changed
+        self.source = text  # the file's text: save_style keeps its comments and layout
         self.flags = self._flags(style)
         self.camera = style.camera
         self.updates = {"uniforms": 0, "recompile": 0}
@@ -169,13 +170,13 @@ class Viewer:
     def reload(self) -> str | None:
         """Read the style file again; on any error keep the current style and report it."""
         try:
-            style, data = read_style(self.style_path)
+            style, text = read_style(self.style_path)
         except (StyleError, OSError) as e:
             self._report(str(e))
             return None
         kind = self.set_style(style)
         if kind is not None:
-            self.file_style, self.source = style, data
+            self.file_style, self.source = style, text
         return kind
 
     def edit(self, path: tuple, value) -> str | None:
@@ -188,10 +189,10 @@ class Viewer:
         return self.set_style(style)
 
     def save_style(self, path=None) -> Path:
-        """Write the style in effect as TOML (atomically).  Unedited, the file's own tables are
-        written back, so its parsed content stays the same; edited, ``style_to_dict``."""
+        """Write the style in effect as TOML (atomically), in the style file's own text with the
+        edited values replaced (comments and layout kept; see ``render.style.save_style``)."""
         path = Path(path) if path is not None else self.style_path
-        save_style(self.source if self.style == self.file_style else self.style, path)
+        save_style(self.style, path, keep=self.source)  # unedited: the file as it is
         self.message = f"saved {path}"
         return path
 
