@@ -435,6 +435,26 @@ def _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1):
     return math.sqrt(e5 / 3.0)
 
 
+@njit(cache=True, inline="always")
+def _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax, beta, expo1):
+    """Hairer's PI controller with Gustafsson's memory, after an accepted step of hs (h: the
+    step the controller had asked for): (next step, errp, errp ** beta).  Shared with the
+    pathline kernel."""
+    if err == 0.0:
+        g = facmax
+    else:
+        g = min(facmax, max(facmin, safety * errpb / err ** expo1))
+    if last_rej:
+        g = min(g, 1.0)
+    if max(err, 1e-4) != errp:  # errp ** beta only when errp changes (often 1e-4)
+        errp = max(err, 1e-4)
+        errpb = errp ** beta
+    hnext = hs * g
+    if g >= 1.0 and abs(h) > abs(hnext):
+        hnext = h  # the step was cut by the cell cap or a limit, not by its error
+    return hnext, errp, errpb
+
+
 # -- one line -------------------------------------------------------------------------------------
 @njit(cache=True)
 def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
@@ -726,20 +746,9 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
             continue
         if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
             si[l, I_STIFF] = stiff_update(si[l, I_STIFF], dp5_hlambda(hs, k, ys, y1))
-        # next step size (Hairer's PI controller with Gustafsson's memory)
         if adaptive:
-            if err == 0.0:
-                g = facmax
-            else:
-                g = min(facmax, max(facmin, safety * errpb / err ** expo1))
-            if last_rej:
-                g = min(g, 1.0)
-            if max(err, 1e-4) != errp:  # errp ** beta only when errp changes (often 1e-4)
-                errp = max(err, 1e-4)
-                errpb = errp ** beta
-            hnext = hs * g
-            if g >= 1.0 and abs(h) > abs(hnext):
-                hnext = h  # the step was cut by the cell cap or a limit, not by its error
+            hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin,
+                                            facmax, beta, expo1)
         else:
             hnext = h
         last_rej = False

@@ -13,8 +13,9 @@ in time there.
 Why a kernel of its own: the streamline kernel (``kernel.py``) evaluates a steady field from the
 8 corner values of one cell gathered once per cell; it has no notion of time in the field.  This
 kernel shares the method tableaux, the trilinear interpolation (``interp.locate_axis``,
-``interp.trilinear_vector``), the error norm and the step-size controller of ``kernel.py`` (same
-formulas, kept in step by the tests on analytic fields) but evaluates two snapshots per stage.
+``interp.trilinear_vector``), the step-size controller, the dense output and the option columns
+of ``kernel.py`` (its error norm is the same formula, kept in step by the tests on analytic
+fields) but evaluates two snapshots per stage.
 
 Seeds are released at given times (default: the start of the series, its end when backward).
 Every line records why it stopped: ``out_of_domain`` (the last vertex ON the boundary, found on
@@ -36,6 +37,22 @@ from numba import njit, prange
 from ..fields import Field
 from ..fields.interp import locate_axis, trilinear_vector
 from ..lines import Lines
+from .kernel import (
+    O_ATOL,
+    O_BETA,
+    O_FACMAX,
+    O_FACMIN,
+    O_H0,
+    O_HMAX,
+    O_HMIN,
+    O_MAXLEN,
+    O_MAXTIME,
+    O_RTOL,
+    O_SAFETY,
+    O_STAG,
+    _dense,
+    _next_step,
+)
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES, Reason
 
@@ -46,10 +63,8 @@ NF = 11
 I_STATUS, I_REASON, I_NACC, I_NREJ, I_LASTREJ = 0, 1, 2, 3, 4
 NI = 5
 NEW, RUNNING, DONE = 0, 1, 2
-# float options
-O_RTOL, O_ATOL, O_SAFETY, O_FACMIN, O_FACMAX, O_BETA = 0, 3, 6, 7, 8, 9
-O_H0, O_HMIN, O_HMAX, O_MAXLEN, O_MAXTIME, O_STAG = 10, 11, 12, 13, 14, 15
-NFO = 16
+# float options: the streamline kernel's columns up to O_STAG
+NFO = O_STAG + 1
 
 POINT_ATTRIBUTES = ("time", "arc_length", "speed", "velocity", "distance_to_seed")
 BUFFER_VERTICES = 1 << 22  # vertices held by one kernel launch (all lines together)
@@ -96,15 +111,6 @@ def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
     k[row, 2] = w
     k[row, 3] = math.sqrt(u * u + v * v + w * w)
     return True
-
-
-@njit(cache=True, inline="always")
-def _dense(Q, comp, q, y0, hs, th):
-    """y0 + hs * Σ_j Q[comp, j] θ^(j+1)."""
-    acc = 0.0
-    for j in range(q - 1, -1, -1):
-        acc = acc * th + Q[comp, j]
-    return y0 + hs * (th * acc)
 
 
 @njit(cache=True)
@@ -175,6 +181,7 @@ def _advance_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0,
         n_rej = 0
         last_rej = False
         errp = 1e-4
+        errpb = errp ** beta
         h = fo[O_H0]
         if h <= 0.0:
             # Hairer's initial step (Hairer, Nørsett & Wanner I, II.4) on the position, as kernel.py
@@ -215,6 +222,7 @@ def _advance_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0,
         t = sf[l, F_T]
         h = sf[l, F_H]
         errp = sf[l, F_ERRP]
+        errpb = errp ** beta
         for a in range(4):
             k[0, a] = sf[l, F_K0 + a]
         n_acc = si[l, I_NACC]
@@ -306,14 +314,8 @@ def _advance_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0,
                 reason = R_NAN
                 break
             continue
-        # Hairer's PI controller with Gustafsson's memory, as kernel.py
-        g = facmax if err == 0.0 else min(facmax, max(facmin, safety * errp ** beta / err ** expo1))
-        if last_rej:
-            g = min(g, 1.0)
-        errp = max(err, 1e-4)
-        hnext = hs * g
-        if g >= 1.0 and abs(h) > abs(hnext):
-            hnext = h  # the step was clipped to a time limit, not cut by its error
+        hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax,
+                                        beta, expo1)
         hnext = d * min(abs(hnext), hmax)
         last_rej = False
         n_acc += 1
