@@ -70,7 +70,6 @@ def test_toml_writer_round_trips_exactly(style, tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name != "s.toml"]  # atomic: no temp left
 
 
-
 COMMENTED = """\
 # my halo style
 version = 1
@@ -125,7 +124,9 @@ def test_save_falls_back_when_the_layout_differs(tmp_path):
     base = style_from_dict(tomllib.loads(text))
     edited = replace_at(base, ("styles", "default", "bands", 0, "width"), 4.0)
     out = save_style(edited, tmp_path / "s.toml", keep=text)
+    assert out.read_text() == dump_style(edited)  # the plain text: comments lost
     assert load_style(out) == edited
+
 
 def test_toml_writer_forms():
     d = style_to_dict(RICH)

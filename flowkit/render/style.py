@@ -651,9 +651,9 @@ def save_style(data: Style | dict, path: str | Path, *, keep: str | None = None)
     """
     from ..io.atomic import atomic_path
 
-    text = dump_style(data)
-    if keep is not None and isinstance(data, Style):
-        text = _edit_text(keep, data) or text
+    text = _edit_text(keep, data) if keep is not None and isinstance(data, Style) else None
+    if text is None:
+        text = dump_style(data)
     with atomic_path(path) as tmp:
         Path(tmp).write_text(text, encoding="utf-8")
     return Path(path)
@@ -666,8 +666,8 @@ def _edit_text(text: str, style: Style) -> str | None:
 
     try:
         doc = tomlkit.parse(text)
-        old = style_to_dict(style_from_dict(tomllib.loads(text)))
-    except (TOMLKitError, tomllib.TOMLDecodeError, StyleError):
+        old = style_to_dict(style_from_dict(doc.unwrap()))
+    except (TOMLKitError, StyleError):
         return None
     _edit_tables(doc, old, style_to_dict(style))
     out = tomlkit.dumps(doc)
@@ -695,4 +695,3 @@ def _edit_tables(doc, old: dict, new: dict) -> None:
                 _edit_tables(c, w, v)
         else:
             doc[key] = value
-
