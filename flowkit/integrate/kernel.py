@@ -458,7 +458,10 @@ def _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax, beta, 
 # -- one line -------------------------------------------------------------------------------------
 @njit(cache=True)
 def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                  mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B):
+                  mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, setup_only):
+    """Advance line l, writing its vertices after the ``out_n[slot]`` already in its buffer row;
+    ``setup_only``: start (or resume) the line and suspend it before its first step (the
+    lock-step kernel in ``lanes.py`` takes it from there and hands it back)."""
     S, n_err, fs, adaptive, kexp, has_e2 = mi[0], mi[1], mi[2], mi[3] != 0, mi[4], mi[5] != 0
     q = mp.shape[1]
     param, aware, emit = io[P_PARAM], io[P_AWARE] != 0, io[P_EMIT]
@@ -474,7 +477,6 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
     n_step = max(n_err, fs + 1)  # the stages of every step (the last one: f(y1))
     d = dirs[l]
     spacing, phase = spacings[l], phases[l]
-    out_n[slot] = 0
     if si[l, I_STATUS] == DONE:  # only a pending emission left
         _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
         return
@@ -585,7 +587,7 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
     reason = -1
     suspended = False
     while True:
-        if out_n[slot] >= B:
+        if out_n[slot] >= B or setup_only:
             suspended = True
             break
         speed = k[0, 3] if param == 0 else 1.0 / k[0, 3]
@@ -909,8 +911,9 @@ def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
     """Advance the lines ``active`` until each is done or has filled its B output slots."""
     B = out_p.shape[1]
     for n in prange(active.size):
+        out_n[n] = 0
         _advance_line(active[n], n, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                      mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B)
+                      mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, False)
 
 
 @njit(cache=True, parallel=True)

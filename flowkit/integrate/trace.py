@@ -19,6 +19,7 @@ from ..fields import Field
 from ..lines import Lines
 from . import attributes as _attributes
 from . import kernel as K
+from . import lanes
 from .methods import get_method
 from .options import STIFF_METHODS, OptionsError, TraceOptions
 from .reasons import REASON_NAMES
@@ -247,7 +248,7 @@ def _backend(backend):
     if callable(backend):
         return backend
     if backend == "numba":
-        return K.advance
+        return lanes.advance  # kernel.advance, lines in lock-step where that applies
     if isinstance(backend, str) and backend.split(":")[0] == "opencl":
         from .opencl.backend import OpenCLAdvance
 

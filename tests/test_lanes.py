@@ -1,0 +1,134 @@
+"""Lines in lock-step (flowkit/integrate/lanes.py): the same lines as the scalar kernel, bit for
+bit, with the lock-step doing the steps where it applies."""
+
+import numpy as np
+import pytest
+
+from flowkit import trace
+from flowkit.fields.analytic import ABCFlow, SolidBodyRotation
+from flowkit.fields.field import Field
+from flowkit.fields.grid import Grid
+from flowkit.integrate import kernel as K
+from flowkit.integrate import lanes
+
+
+def _abc(holes=False, zero=False):
+    f = ABCFlow().to_field(33, bounds=[[0.0, 6.0]] * 3, periodic=False)
+    v = f.vector.copy()
+    if holes:
+        v[10:13, 10:20, 5:25] = np.nan
+        v[20, 20, 20] = np.inf
+    if zero:
+        v[15:18, 15:18, 15:18] = 0.0
+        v[0, 0, 0] = 0.0
+    return Field(f.grid, v)
+
+
+def _seeds(n=300):
+    rng = np.random.default_rng(1)
+    s = rng.uniform(0.1, 5.9, (n, 3))
+    s[::41] = [-1.0, 2.0, 2.0]  # outside
+    s[::53] = np.nan
+    s[1] = [3.0, 3.0, 3.0]  # on a node: on faces of three axes
+    return s
+
+
+def _same(field, seeds, **kw):
+    a = trace(field, seeds, backend=K.advance, **kw)
+    b = trace(field, seeds, backend=lanes.advance, **kw)
+    assert np.array_equal(a.offsets, b.offsets)
+    assert np.array_equal(a.points, b.points, equal_nan=True)
+    for key in a.line_data:
+        assert np.array_equal(np.asarray(a.line_data[key]), np.asarray(b.line_data[key])), key
+    for key in a.point_data:
+        assert np.array_equal(np.asarray(a.point_data[key]), np.asarray(b.point_data[key]),
+                              equal_nan=True), key
+    return a
+
+
+CASES = {
+    "rk4 arc length": {"step": 0.1, "parameter": "arc_length", "max_length": 10.0},
+    "rk4 time, both directions": {"step": 0.05, "max_time": 5.0, "max_length": 1e9,
+                                  "direction": "both"},
+    "rk4 small buffer": {"step": 0.1, "max_length": 40.0, "budget": 7},
+    "euler backward": {"method": "euler", "step": 0.01, "max_length": 5.0,
+                       "direction": "backward"},
+    "rk4 max_steps": {"step": 0.1, "max_length": 500.0, "max_steps": 37},
+    "rk4 attributes": {"step": 0.1, "max_length": 10.0,
+                       "attributes": ["speed", "time", "vorticity"]},
+    "rk4 max_step": {"step": 0.05, "max_step": 0.03, "max_length": 10.0},
+}
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_bit_identical_to_scalar_kernel(name):
+    kw = {"method": "rk4", "cell_aware": False} | CASES[name]
+    lines = _same(_abc(), _seeds(), **kw)
+    reasons = np.asarray(lines.line_data["reason"])
+    assert (reasons == 0).sum() > 100  # most leave the box: boundary events on every line
+
+
+@pytest.mark.parametrize("holes,zero,param", [(True, False, "time"), (False, True, "arc_length"),
+                                              (False, True, "time")])
+def test_bit_identical_at_nan_and_stagnation(holes, zero, param):
+    kw = {"max_time": 50.0, "max_length": 1e9} if param == "time" else {"max_length": 50.0}
+    lines = _same(_abc(holes, zero), _seeds(), method="rk4", step=0.1, cell_aware=False,
+                  parameter=param, **kw)
+    reasons = set(np.asarray(lines.line_data["reason"]).tolist())
+    assert reasons & {int(K.R_NAN), int(K.R_STAG)}
+
+
+def _kernel_args(field, seeds, **kw):
+    """The arguments of the first kernel call trace makes."""
+    got = []
+
+    def capture(*args):
+        if not got:
+            got.append([a.copy() if isinstance(a, np.ndarray) else a for a in args])
+        K.advance(*args)
+
+    trace(field, seeds, backend=capture, **kw)
+    return got[0]
+
+
+def test_lockstep_takes_the_interior_steps():
+    """Solid-body rotation inside the box: the lock-step takes every step but the last
+    (clipped) one, and its state is the scalar kernel's after those steps."""
+    f = SolidBodyRotation().to_field(25)
+    seeds = np.random.default_rng(2).uniform(-0.6, 0.6, (100, 3))
+    kw = {"method": "rk4", "step": 0.05, "max_length": 3.0, "cell_aware": False}
+    args = _kernel_args(f, seeds, **kw)
+    (active, _, dirs, _, _, gx, gy, gz, period, inv, vec,
+     _, ma, mb, _, _, _, mi, fo, io, sf, si, out_p, out_par, out_n) = args
+    assert lanes.eligible(period, inv, mi, io)
+    lanes._scalar(*args, True, True)
+    lanes.lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf, si,
+                   out_p, out_par, out_n)
+    steps = int(np.ceil(3.0 / 0.05))
+    assert np.all(si[:, K.I_NACC] >= steps - 2)
+    assert np.all(out_n == si[:, K.I_NACC] + 1)  # the seed and a vertex per step
+    # the scalar kernel from the same start, as many steps, gives the same vertices
+    ref = trace(f, seeds, backend=K.advance, **kw)
+    for n in range(len(seeds)):
+        m = out_n[n]
+        assert np.array_equal(out_p[n, :m], ref.points[ref.offsets[n]:ref.offsets[n] + m])
+
+
+def test_eligible_only_where_it_applies():
+    f = _abc()
+    s = _seeds(5)
+    base = {"method": "rk4", "step": 0.1, "max_length": 1.0, "cell_aware": False}
+
+    def ok(field=f, **kw):
+        args = _kernel_args(field, s, **(base | kw))
+        return lanes.eligible(args[8], args[9], args[17], args[19])  # period, inv, mi, io
+
+    assert ok()
+    assert ok(method="euler")
+    assert not ok(method="dopri5", step=None)  # adaptive
+    assert not ok(cell_aware=True)
+    assert not ok(spacing=0.05)  # resampled output needs the dense output
+    periodic = ABCFlow().to_field(16, bounds=[[0.0, 2 * np.pi]] * 3)
+    assert not ok(periodic, max_length=1.0)
+    rect = Grid(np.r_[0.0, 0.5, 2.0, 6.0], np.linspace(0, 6, 7), np.linspace(0, 6, 7))
+    assert not ok(ABCFlow().to_field(grid=rect))
