@@ -101,7 +101,8 @@ def test_lockstep_takes_the_interior_steps():
     (active, _, dirs, _, _, gx, gy, gz, period, inv, vec,
      _, ma, mb, _, _, _, mi, fo, io, sf, si, out_p, out_par, out_n) = args
     assert lanes.eligible(period, inv, mi, io)
-    lanes._scalar(*args, True, True)
+    io[K.P_PASS] = K.PASS_SETUP  # start the lines, as lanes.advance does
+    K.advance(*args)
     lanes.lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf, si,
                    out_p, out_par, out_n)
     steps = int(np.ceil(3.0 / 0.05))

@@ -56,8 +56,11 @@ O_RTOL, O_ATOL, O_SAFETY, O_FACMIN, O_FACMAX, O_BETA = 0, 3, 6, 7, 8, 9
 O_H0, O_HMIN, O_HMAX, O_MAXLEN, O_MAXTIME, O_STAG, O_CELLFAC = 10, 11, 12, 13, 14, 15, 16
 NFO = 17
 # int options (io)
-P_MAXSTEPS, P_PARAM, P_AWARE, P_EMIT, P_STIFF = 0, 1, 2, 3, 4
-NIO = 5  # P_STIFF: stage index of the stiffness pair (dopri5: 5, c = 1 like f(y1)); -1 none
+P_MAXSTEPS, P_PARAM, P_AWARE, P_EMIT, P_STIFF, P_PASS = 0, 1, 2, 3, 4, 5
+NIO = 6  # P_STIFF: stage index of the stiffness pair (dopri5: 5, c = 1 like f(y1)); -1 none
+# P_PASS: what ``advance`` does (lanes.py runs a launch as a setup and a finishing pass around
+# its lock-step; a flag in io, not an argument, so that _advance_line is compiled once)
+PASS_FULL, PASS_SETUP, PASS_FINISH = 0, 1, 2
 EMIT_STEPS, EMIT_SPACING, EMIT_FINAL = 0, 1, 2
 # events
 EV_NONE, EV_FACE, EV_BOUNDARY, EV_DEPLIM = 0, 1, 2, 3
@@ -908,12 +911,20 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
 @njit(cache=True, parallel=True)
 def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
             mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
-    """Advance the lines ``active`` until each is done or has filled its B output slots."""
+    """Advance the lines ``active`` until each is done or has filled its B output slots.
+
+    ``io[P_PASS]``: PASS_FULL that; PASS_SETUP start or resume each line and stop it before its
+    first step; PASS_FINISH continue the lines not done, after the vertices already in the
+    buffers (lanes.py)."""
     B = out_p.shape[1]
+    mode = io[P_PASS]
     for n in prange(active.size):
-        out_n[n] = 0
-        _advance_line(active[n], n, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                      mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, False)
+        if mode != PASS_FINISH:
+            out_n[n] = 0
+        if mode != PASS_FINISH or si[active[n], I_STATUS] != DONE:
+            _advance_line(active[n], n, seeds, dirs, spacings, phases, gx, gy, gz, period, inv,
+                          vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n,
+                          B, mode == PASS_SETUP)
 
 
 @njit(cache=True, parallel=True)

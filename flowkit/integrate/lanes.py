@@ -25,7 +25,6 @@ import numpy as np
 from numba import njit, prange
 
 from .kernel import (
-    DONE,
     EMIT_STEPS,
     I_LASTREJ,
     I_NACC,
@@ -39,17 +38,21 @@ from .kernel import (
     P_EMIT,
     P_MAXSTEPS,
     P_PARAM,
+    P_PASS,
     P_STIFF,
+    PASS_FINISH,
+    PASS_FULL,
+    PASS_SETUP,
     RUNNING,
     S_DEP,
     S_H,
     S_K0,
     S_TAU,
     S_Y,
-    _advance_line,
     _prefetch_cell,
     _put,
 )
+from .kernel import advance as advance_one_by_one
 
 W = 32  # lines per group: enough cache misses in flight to cover the memory latency
 SMAX = 5  # stages of the eligible methods (rk4 and euler with their f(y1) stage)
@@ -172,21 +175,6 @@ def _inverse_widths(gx, gy, gz):
 
 
 @njit(cache=True, parallel=True)
-def _scalar(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, start, setup_only):
-    """``kernel._advance_line`` for each line (not done): from an empty buffer row if ``start``;
-    up to the line's first step only if ``setup_only``."""
-    B = out_p.shape[1]
-    for n in prange(active.size):
-        if start:
-            out_n[n] = 0
-        if start or si[active[n], I_STATUS] != DONE:
-            _advance_line(active[n], n, seeds, dirs, spacings, phases, gx, gy, gz, period, inv,
-                          vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n,
-                          B, setup_only)
-
-
-@njit(cache=True, parallel=True)
 def lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf, si,
              out_p, out_par, out_n):
     """Advance the started lines ``active`` in groups of W as far as the lock-step goes; their
@@ -292,13 +280,13 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf,
 def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
             mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
     """``kernel.advance``, with lines in lock-step where ``eligible`` (same results)."""
-    if not eligible(period, inv, mi, io):
-        _scalar(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, True, False)
-        return
-    _scalar(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, True, True)
-    lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf, si,
-             out_p, out_par, out_n)
-    _scalar(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, False, False)
+    if eligible(period, inv, mi, io):
+        io[P_PASS] = PASS_SETUP
+        advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
+                           mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
+        lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf, si,
+                 out_p, out_par, out_n)
+        io[P_PASS] = PASS_FINISH
+    advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
+                       mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
+    io[P_PASS] = PASS_FULL
