@@ -588,9 +588,9 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
             return
 
     reason = -1
-    suspended = False
-    while True:
-        if out_n[slot] >= B or setup_only:
+    suspended = setup_only  # (lanes.py's setup pass: the line stops before its first step)
+    while not suspended:
+        if out_n[slot] >= B:
             suspended = True
             break
         speed = k[0, 3] if param == 0 else 1.0 / k[0, 3]

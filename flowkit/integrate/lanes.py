@@ -76,8 +76,9 @@ def _axis_cell(c, inv, x):
     """Cell of x on a uniform bounded axis, as ``kernel._relocate`` finds it (clamped to the
     end cells)."""
     n = c.size
-    xc = max(x, c[0])  # (NaN -> c[0]: a finite index; the lane's step fails)
-    xc = min(xc, c[n - 1])
+    # not max/min: a NaN coordinate must become c[0], a valid index (the lane's step then fails)
+    xc = x if x >= c[0] else c[0]  # noqa: FURB136
+    xc = xc if xc <= c[n - 1] else c[n - 1]  # noqa: FURB136
     i = min(max(int((xc - c[0]) * inv), 0), n - 2)
     if xc < c[i]:  # rounding of (x - c0) * inv may land one cell off
         i -= 1
@@ -109,7 +110,7 @@ def _component(flat, b, di, dj, c, tx, ty, tz):
 
 
 @njit(cache=True, inline="always")
-def _eval(yt, w, param, gx, gy, gz, iw, inv, flat, ny, nz, ci, lo, hi, k, row):
+def _eval(yt, w, param, gx, gy, gz, inv, flat, ny, nz, ci, lo, hi, sc, k, row):
     """Right-hand side of lane w at yt[:, w] into k[row, :, w], as ``kernel._f`` computes it
     with the cell it has cached: kept while the point is inside it (faces included), else
     located again.  False where ``kernel._norm3`` would rescale (tiny or huge speeds)."""
@@ -121,10 +122,12 @@ def _eval(yt, w, param, gx, gy, gz, iw, inv, flat, ny, nz, ci, lo, hi, k, row):
         ci[2, w] = _axis_cell(gz, inv[2], pz)
         lo[0, w], lo[1, w], lo[2, w] = gx[ci[0, w]], gy[ci[1, w]], gz[ci[2, w]]
         hi[0, w], hi[1, w], hi[2, w] = gx[ci[0, w] + 1], gy[ci[1, w] + 1], gz[ci[2, w] + 1]
+        for a in range(3):
+            sc[a, w] = 1.0 / (hi[a, w] - lo[a, w])  # kernel._relocate's 1 / width
     i, j, kk = ci[0, w], ci[1, w], ci[2, w]
-    tx = (px - lo[0, w]) * iw[0, i]
-    ty = (py - lo[1, w]) * iw[1, j]
-    tz = (pz - lo[2, w]) * iw[2, kk]
+    tx = (px - lo[0, w]) * sc[0, w]
+    ty = (py - lo[1, w]) * sc[1, w]
+    tz = (pz - lo[2, w]) * sc[2, w]
     dj = nz * 3
     di = ny * dj
     b = ((i * ny + j) * nz + kk) * 3
@@ -141,8 +144,8 @@ def _eval(yt, w, param, gx, gy, gz, iw, inv, flat, ny, nz, ci, lo, hi, k, row):
 
 
 @njit(cache=True, inline="always")
-def _stages(first, last, live, y, h, k, ma, yt, ok, param, vec, gx, gy, gz, period, inv, iw,
-            flat, ci, lo, hi):
+def _stages(first, last, live, y, h, k, ma, yt, ok, param, vec, gx, gy, gz, period, inv, flat,
+            ci, lo, hi, sc):
     """Stages first..last of every live lane: the points (summed in the scalar kernel's order),
     a prefetch of all their cells, then the evaluations."""
     ny, nz = vec.shape[1], vec.shape[2]
@@ -157,21 +160,8 @@ def _stages(first, last, live, y, h, k, ma, yt, ok, param, vec, gx, gy, gz, peri
                 _prefetch_cell(vec, gx, gy, gz, period, inv, yt[0, w], yt[1, w], yt[2, w], -1)
         for w in range(W):
             if live[w]:
-                ok[w] &= _eval(yt, w, param, gx, gy, gz, iw, inv, flat, ny, nz, ci, lo, hi, k,
+                ok[w] &= _eval(yt, w, param, gx, gy, gz, inv, flat, ny, nz, ci, lo, hi, sc, k,
                                st)
-
-
-@njit(cache=True)
-def _inverse_widths(gx, gy, gz):
-    """1 / (c[i + 1] - c[i]) per cell and axis: the values ``kernel._relocate`` divides out."""
-    out = np.zeros((3, max(gx.size, gy.size, gz.size)))
-    for i in range(gx.size - 1):
-        out[0, i] = 1.0 / (gx[i + 1] - gx[i])
-    for i in range(gy.size - 1):
-        out[1, i] = 1.0 / (gy[i + 1] - gy[i])
-    for i in range(gz.size - 1):
-        out[2, i] = 1.0 / (gz[i + 1] - gz[i])
-    return out
 
 
 @njit(cache=True, parallel=True)
@@ -187,12 +177,11 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf,
     lim_dep = fo[O_MAXLEN] if param == 0 else fo[O_MAXTIME]
     dlo = np.array([gx[0], gy[0], gz[0]])
     dhi = np.array([gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]])
-    iw = _inverse_widths(gx, gy, gz)
     flat = vec.reshape(-1)  # C-contiguous (Field makes it so)
     for g in prange((active.size + W - 1) // W):
         y, yt, y1, k = np.empty((4, W)), np.empty((3, W)), np.empty((4, W)), np.empty((SMAX, 4, W))
         tau, h, d = np.zeros(W), np.zeros(W), np.ones(W)
-        lo, hi = np.zeros((3, W)), np.zeros((3, W))
+        lo, hi, sc = np.zeros((3, W)), np.zeros((3, W)), np.zeros((3, W))  # cached cells
         ci = np.full((3, W), -1, np.int64)
         n_acc, n_rej = np.zeros(W, np.int64), np.zeros(W, np.int64)
         live, moved, ok = np.zeros(W, np.bool_), np.zeros(W, np.bool_), np.ones(W, np.bool_)
@@ -229,7 +218,7 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf,
             if n_live == 0:
                 break
             _stages(1, n_err - 1, live, y, h, k, ma, yt, ok, param, vec, gx, gy, gz, period,
-                    inv, iw, flat, ci, lo, hi)
+                    inv, flat, ci, lo, hi, sc)
             for w in range(W):
                 if live[w]:
                     for a in range(4):
@@ -238,7 +227,7 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf,
                             acc += mb[m] * k[m, a, w]
                         y1[a, w] = y[a, w] + h[w] * acc
             _stages(n_err, fs, live, y, h, k, ma, yt, ok, param, vec, gx, gy, gz, period, inv,
-                    iw, flat, ci, lo, hi)
+                    flat, ci, lo, hi, sc)
             # commit where the scalar kernel would take the step with no event
             for w in range(W):
                 if not live[w]:
