@@ -199,7 +199,7 @@ def _gather(vec, ci, coef):
     return bad == 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef):
     i, lo, hi = _locate_cell(gx, period[0], inv[0], px)
     ci[0] = i
@@ -465,6 +465,30 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
     """Advance line l, writing its vertices after the ``out_n[slot]`` already in its buffer row;
     ``setup_only``: start (or resume) the line and suspend it before its first step (the
     lock-step kernel in ``lanes.py`` takes it from there and hands it back)."""
+    k = np.empty((mi[0], 4))  # the stages
+    coef = np.empty((8, 3))  # the cached cell's polynomial
+    cf = np.empty(9)  # its faces and 1 / widths
+    ci = np.empty(3, np.int64)  # its index
+    y = np.empty(4)  # position and dependent parameter
+    yt = np.empty(3)  # a stage's point
+    ys = np.empty(3)  # the point of stage st_stiff (stiffness detection)
+    y1 = np.empty(3)  # the step's end
+    dlo = np.empty(3)  # domain bounds
+    dhi = np.empty(3)
+    qd = np.empty((4, QMAX))  # dense coefficients
+    _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec, mc, ma, mb, me,
+              me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, setup_only, k, coef, cf, ci,
+              y, yt, ys, y1, dlo, dhi, qd)
+
+
+# Compiled without NRT, so without reference counting: every array here is the caller's.  With
+# NRT, each array handed to an inlined helper in the step loop cost an atomic increment and
+# decrement, a fifth of a plain rk4 step's time (measured); NRT cannot allocate, hence the
+# wrapper above
+@njit(cache=True, _nrt=False)
+def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec, mc, ma, mb,
+              me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, setup_only,
+              k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd):
     S, n_err, fs, adaptive, kexp, has_e2 = mi[0], mi[1], mi[2], mi[3] != 0, mi[4], mi[5] != 0
     q = mp.shape[1]
     param, aware, emit = io[P_PARAM], io[P_AWARE] != 0, io[P_EMIT]
@@ -483,17 +507,9 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
     if si[l, I_STATUS] == DONE:  # only a pending emission left
         _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
         return
-    k = np.empty((S, 4))
-    coef = np.empty((8, 3))
-    cf = np.empty(9)
-    ci = np.full(3, -1, np.int64)
-    y = np.empty(4)
-    yt = np.empty(3)
-    ys = np.empty(3)  # the point of stage st_stiff (stiffness detection)
-    y1 = np.empty(3)
-    qd = np.empty((4, QMAX))
-    dlo = np.array([gx[0], gy[0], gz[0]])  # domain bounds
-    dhi = np.array([gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]])
+    ci[0] = ci[1] = ci[2] = -1
+    dlo[0], dlo[1], dlo[2] = gx[0], gy[0], gz[0]
+    dhi[0], dhi[1], dhi[2] = gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]
 
     if si[l, I_STATUS] == NEW:
         px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
