@@ -89,7 +89,7 @@ def _axis(c, period, inv, x):
     return i, t
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
     """(1 - a) v0 + a v1 at (x, y, z) into k[row, 0:3] and the speed into k[row, 3];
     returns False for NaN data or a NaN position."""
@@ -113,7 +113,7 @@ def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _root(Q, comp, q, y0, hs, target, sgn):
     """θ in [0, 1] where the dense output of ``comp`` reaches ``target`` (sgn * (value - target)
     goes from < 0 at θ = 0 to >= 0 at θ = 1): Newton safeguarded by bisection."""
@@ -151,16 +151,25 @@ def _root(Q, comp, q, y0, hs, target, sgn):
 @njit(cache=True)
 def _advance_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
                   mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B):
+    k = np.empty((mi[0], 4))
+    Q = np.empty((4, mp.shape[1]))
+    yt = np.empty(3)
+    y = np.empty(4)  # position and arc length
+    y1 = np.empty(4)
+    _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1, mc, ma,
+              mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt, y, y1)
+
+
+# without NRT (no reference counting in the step loop), as kernel._run_line
+@njit(cache=True, _nrt=False)
+def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1, mc, ma,
+              mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt, y, y1):
     S, n_err, fs, kexp = mi[0], mi[1], mi[2], mi[4]
     q = mp.shape[1]
     safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
     hmin, hmax, stag, maxlen = fo[O_HMIN], fo[O_HMAX], fo[O_STAG], fo[O_MAXLEN]
     max_steps = io[0]
     expo1 = 1.0 / kexp - 0.75 * beta
-    k = np.empty((S, 4))
-    Q = np.empty((4, q))
-    yt = np.empty(3)
-    y = np.empty(4)  # position and arc length
     out_n[slot] = 0
     tlim = release[l] + d * fo[O_MAXTIME]
 
@@ -263,7 +272,6 @@ def _advance_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0,
             if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
                              v0, v1, t0, t1, k, st):
                 k[st, 0] = np.nan
-        y1 = np.empty(4)
         e5 = 0.0
         finite = True
         for a in range(4):
