@@ -305,6 +305,23 @@ def _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef):
     return _move(2, up, gz, period[2], vec, ci, cf, coef)
 
 
+@njit(cache=True, inline="always")
+def _stage_point(ma, k, st, y, hs, yt):
+    """yt = y + hs * Σ_m<st ma[st, m] k[m] (position): the three sums advance together over m,
+    each adding its terms in the same order as a sum per component would."""
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    for m in range(st):
+        c = ma[st, m]
+        a0 += c * k[m, 0]
+        a1 += c * k[m, 1]
+        a2 += c * k[m, 2]
+    yt[0] = y[0] + hs * a0
+    yt[1] = y[1] + hs * a1
+    yt[2] = y[2] + hs * a2
+
+
 # -- dense output -----------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _dense(qd, comp, q, y0, hs, th):
@@ -675,11 +692,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
 
         # stages
         for st in range(1, n_err):
-            for a in range(3):
-                acc = 0.0
-                for m in range(st):
-                    acc += ma[st, m] * k[m, a]
-                yt[a] = y[a] + hs * acc
+            _stage_point(ma, k, st, y, hs, yt)
             if st == st_stiff:
                 ys[0], ys[1], ys[2] = yt[0], yt[1], yt[2]
             if aware:
@@ -751,11 +764,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
 
         # accepted: the remaining stages up to f(y1)
         for st in range(n_err, fs + 1):
-            for a in range(3):
-                acc = 0.0
-                for m in range(st):
-                    acc += ma[st, m] * k[m, a]
-                yt[a] = y[a] + hs * acc
+            _stage_point(ma, k, st, y, hs, yt)
             _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
         if not math.isfinite(k[fs, 0] + k[fs, 1] + k[fs, 2] + k[fs, 3]):
             n_rej += 1  # y1 itself lies in a NaN cell
@@ -790,11 +799,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         need_dep = abs(dep1) >= lim_dep
         if need_face or need_dep or emit == EMIT_SPACING:
             for st in range(fs + 1, S):  # stages only the dense output uses
-                for a in range(3):
-                    acc = 0.0
-                    for m in range(st):
-                        acc += ma[st, m] * k[m, a]
-                    yt[a] = y[a] + hs * acc
+                _stage_point(ma, k, st, y, hs, yt)
                 _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
             for a in range(4):
                 for j in range(q):

@@ -52,6 +52,7 @@ from .kernel import (
     O_STAG,
     _dense,
     _next_step,
+    _stage_point,
 )
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES, Reason
@@ -264,11 +265,7 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
         if hit:
             hs = d * rem
         for st in range(1, n_err):
-            for a in range(3):
-                acc = 0.0
-                for m in range(st):
-                    acc += ma[st, m] * k[m, a]
-                yt[a] = y[a] + hs * acc
+            _stage_point(ma, k, st, y, hs, yt)
             if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
                              v0, v1, t0, t1, k, st):
                 k[st, 0] = np.nan
@@ -306,11 +303,7 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
         # accepted: stages up to f(y1) and those only the dense output uses
         ok = True
         for st in range(n_err, S):
-            for a in range(3):
-                acc = 0.0
-                for m in range(st):
-                    acc += ma[st, m] * k[m, a]
-                yt[a] = y[a] + hs * acc
+            _stage_point(ma, k, st, y, hs, yt)
             if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
                              v0, v1, t0, t1, k, st):
                 ok = False
