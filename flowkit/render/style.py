@@ -637,9 +637,9 @@ def style_to_dict(style: Style) -> dict:
 
 def dump_style(data: Style | dict) -> str:
     """TOML text of a Style (or of already-built style tables)."""
-    import tomli_w
+    import tomlkit
 
-    return tomli_w.dumps(style_to_dict(data) if isinstance(data, Style) else data)
+    return tomlkit.dumps(style_to_dict(data) if isinstance(data, Style) else data)
 
 
 def save_style(data: Style | dict, path: str | Path, *, keep: str | None = None) -> Path:
