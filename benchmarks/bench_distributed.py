@@ -31,7 +31,6 @@ from pathlib import Path
 
 import numpy as np
 
-
 OVERHEAD_SEEDS = 20000
 
 
@@ -97,8 +96,8 @@ def main(argv=None) -> int:
                 tasks_s[n] = best["tasks"]
                 cores[n] = best["task_cpu"] / best["tasks"]
                 join_s = min(p["join"] for p in phases[:args.repeat])
-                rows.append((f"{n} worker{'s' if n > 1 else ''} ({chunk} seeds/task, "
-                             f"{best['n_tasks']} tasks)",
+                rows.append(((f"{n} worker{'s' if n > 1 else ''} ({chunk} seeds/task, "
+                              f"{best['n_tasks']} tasks)"),
                              walls[n], (f"tracing phase {tasks_s[n]:.2f} s "
                                         f"({args.seeds / tasks_s[n]:.0f} seeds/s), join "
                                         f"{join_s:.2f} s; cluster start {start:.1f} s, "
@@ -109,7 +108,7 @@ def main(argv=None) -> int:
                     sizes = sorted({max(1, len(sub) // k) for k in (8, 32, 128)})
                     ovh = []
                     for ch in sizes:
-                        wall = _best(args.repeat, lambda ch=ch: job(ch, seeds=sub))
+                        wall = _best(args.repeat, lambda ch=ch, sub=sub: job(ch, seeds=sub))
                         ovh.append((phases[-1]["n_tasks"], wall))
         ntasks, wall = np.array(ovh, float).T
         slope = np.polyfit(ntasks, wall, 1)[0]

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 import numpy as np
 
@@ -39,7 +39,7 @@ class Lines:
                 raise ValueError(f"line attribute '{k}' has {len(v)} rows, expected {L}")
 
     @classmethod
-    def empty(cls) -> "Lines":
+    def empty(cls) -> Lines:
         return cls(np.zeros((0, 3)), np.zeros(1, np.int64))
 
     # -- shape ---------------------------------------------------------------------------
@@ -60,7 +60,7 @@ class Lines:
         return np.repeat(np.arange(len(self)), self.lengths)
 
     # -- access --------------------------------------------------------------------------
-    def __getitem__(self, key) -> "Lines":
+    def __getitem__(self, key) -> Lines:
         """``lines[i]``, ``lines[a:b]``, ``lines[mask]`` or ``lines[indices]`` -> Lines."""
         if isinstance(key, (int, np.integer)):
             i = int(key) + (len(self) if key < 0 else 0)
@@ -83,7 +83,7 @@ class Lines:
             dict(self.attrs),
         )
 
-    def __iter__(self) -> Iterator["Lines"]:
+    def __iter__(self) -> Iterator[Lines]:
         for i in range(len(self)):
             yield self[i]
 
@@ -94,7 +94,7 @@ class Lines:
         return self.point_data[name][self.offsets[i]:self.offsets[i + 1]]
 
     @staticmethod
-    def concatenate(parts: list["Lines"]) -> "Lines":
+    def concatenate(parts: list[Lines]) -> Lines:
         parts = [p for p in parts if p is not None]
         if not parts:
             return Lines.empty()
@@ -112,7 +112,7 @@ class Lines:
             dict(parts[0].attrs),
         )
 
-    def equals(self, other: "Lines", rtol: float = 0.0, atol: float = 0.0) -> bool:
+    def equals(self, other: Lines, rtol: float = 0.0, atol: float = 0.0) -> bool:
         """Same vertices, offsets and attributes (within rtol/atol for floats)."""
         if not np.array_equal(self.offsets, other.offsets):
             return False

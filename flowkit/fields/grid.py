@@ -48,7 +48,7 @@ class Grid:
     uniform: bool = field(default=False)
 
     @classmethod
-    def from_axes(cls, x, y, z, periodic=(False, False, False), period=None, where="grid") -> "Grid":
+    def from_axes(cls, x, y, z, periodic=(False, False, False), period=None, where="grid") -> Grid:
         """Rectilinear grid from 1-D coordinates; detects uniform spacing (to 1e-9 relative)."""
         axes = [_check_axis(n, c, where) for n, c in zip(AXES, (x, y, z))]
         per = _periods(axes, periodic, period, where)
@@ -56,7 +56,7 @@ class Grid:
         return cls(axes[0], axes[1], axes[2], per, uniform)
 
     @classmethod
-    def regular(cls, origin, spacing, shape, periodic=(False, False, False), period=None) -> "Grid":
+    def regular(cls, origin, spacing, shape, periodic=(False, False, False), period=None) -> Grid:
         """Uniform grid.  For periodic axes the default period is ``shape * spacing``."""
         origin = np.broadcast_to(np.asarray(origin, float), (3,))
         spacing = np.broadcast_to(np.asarray(spacing, float), (3,))
