@@ -128,3 +128,53 @@ def test_a_line_stopped_by_nan_cells_keeps_finite_attributes_at_its_end(aware):
     # T = i + 0.1 j at the nodes, linear: 3 + y / 2 on the face x = 0.6
     np.testing.assert_allclose(lines.point_data["T"][end], 3 + 0.5 * lines.points[end, 1], rtol=1e-9)
     assert all(np.all(np.isfinite(a)) for a in lines.point_data.values())
+
+
+def _holed(v_of, shape=(14, 12, 10)):
+    """The vector field v_of(x, y, z) on a non-uniform grid, with a NaN hole of 3x2x3 nodes."""
+    rng = np.random.default_rng(4)
+    axes = [np.cumsum(np.r_[0.0, rng.uniform(0.5, 1.5, n - 1)]) * 0.1 for n in shape]
+    g = Grid.from_axes(*axes)
+    X, Y, Z = np.meshgrid(*axes, indexing="ij")
+    v = np.stack(v_of(X, Y, Z), axis=-1)
+    hole = (slice(5, 8), slice(4, 6), slice(3, 6))
+    v[hole] = np.nan
+    nan = np.zeros(shape, bool)
+    nan[hole] = True
+    return Field(g, v), (X, Y, Z), nan
+
+
+@pytest.mark.parametrize("kind", ["linear", "quadratic"])
+def test_curl_next_to_a_nan_hole_takes_one_sided_differences(kind):
+    """Only the hole's own nodes get a NaN curl; its neighbours take one-sided differences, which
+    are exact for linear fields and (3-point, second order on the node coordinates) quadratics."""
+    if kind == "linear":  # a rotation about z: curl (0, 0, 2)
+        f, (X, Y, Z), nan = _holed(lambda x, y, z: (-y, x, 0 * z))
+        want = np.stack([0 * X, 0 * X, 2 + 0 * X], axis=-1)
+    else:  # v = (y^2, z^2, x^2): curl (-2z, -2x, -2y)
+        f, (X, Y, Z), nan = _holed(lambda x, y, z: (y**2, z**2, x**2))
+        want = np.stack([-2 * Z, -2 * X, -2 * Y], axis=-1)
+    w = attributes.curl(f)
+    np.testing.assert_array_equal(np.isnan(w).any(axis=-1), nan)
+    np.testing.assert_allclose(w[~nan], want[~nan], rtol=0, atol=1e-11)
+
+
+def test_curl_fallbacks_use_a_two_point_difference_only_between_two_nans():
+    """A node with NaN on one side and NaN two nodes away on the other falls back to the 2-point
+    difference; a node between two NaN neighbours has no finite derivative on that axis."""
+    c = np.array([0.0, 0.1, 0.25, 0.3, 0.5, 0.6])
+    f = c**2
+    f[[0, 3, 5]] = np.nan  # node 1: NaN at 0 and 3 -> forward 2-point only from 1 to 2
+    d = attributes._deriv(f, c, 0.0, 0, np.isfinite(f))
+    assert d[1] == pytest.approx((f[2] - f[1]) / (c[2] - c[1]), rel=1e-14)
+    assert d[2] == pytest.approx((f[2] - f[1]) / (c[2] - c[1]), rel=1e-14)  # backward 2-point
+    assert np.isnan(d[4])  # NaN on both sides
+    assert np.isnan(d[[0, 3, 5]]).all()
+
+
+def test_vorticity_of_a_line_passing_a_nan_hole_is_finite():
+    """The uniform flow of nan_face_field has no vorticity; next to its NaN half the vertices'
+    vorticity is 0, not NaN (one-sided differences at the nodes beside the NaN ones)."""
+    lines = trace(nan_face_field(), NAN_FACE_SEEDS, attributes=("vorticity", "vorticity_magnitude"))
+    assert np.isfinite(lines.point_data["vorticity"]).all()
+    np.testing.assert_allclose(lines.point_data["vorticity_magnitude"], 0.0, atol=1e-12)

@@ -162,15 +162,32 @@ def test_uploads_only_what_attributes_need(fields):
 
 
 def _table_deriv(grid, v, comp, ax):
-    """d v[..., comp] / d x_ax at every node by the stencil table."""
-    nodes, w, k = vertex.stencils(grid)
+    """d v[..., comp] / d x_ax at every node by the stencil tables, as curl_nodes applies them:
+    the standard stencil where its values are finite, else the first finite fallback."""
+    nodes, w, _ = vertex.stencils(grid)
+    fb_nodes, fb_w = vertex.fallbacks(grid)
     rows = slice(sum(grid.shape[:ax]), sum(grid.shape[:ax + 1]))
     data = np.moveaxis(v[..., comp], ax, 0)
-    out = np.zeros_like(data)
-    for m in range(k):
-        q = nodes[rows, m]
-        used = q >= 0
-        out[used] += w[rows, m][used, None, None] * data[q[used]]
+
+    def apply(q_all, w_all):  # (n, K) nodes and weights -> (sum, all values finite)
+        out = np.zeros_like(data)
+        finite = np.ones(data.shape, bool)
+        for m in range(q_all.shape[1]):
+            q = q_all[:, m]
+            used = q >= 0
+            val = np.zeros_like(data)
+            val[used] = data[q[used]]
+            finite &= np.isfinite(val)
+            out += w_all[:, m][:, None, None] * val
+        return out, finite
+
+    out, done = apply(nodes[rows], w[rows])
+    out[~done] = np.nan
+    for c in range(4):
+        alt, ok = apply(fb_nodes[rows, c], fb_w[rows, c])
+        ok &= (fb_nodes[rows, c, 0] >= 0)[:, None, None] & ~done
+        out[ok] = alt[ok]
+        done |= ok
     return np.moveaxis(out, 0, ax)
 
 
@@ -182,6 +199,7 @@ def test_stencils_are_the_host_curl(fields):
         assert vertex.stencils(g)[2] <= 3
         v = rng.normal(size=g.shape + (3,))
         v[3, 4, 5, 1] = np.nan
+        v[5:7, 2:4, 1:3] = np.nan  # a hole: its neighbours take one-sided differences
         want = host_attributes.curl(flowkit.Field(g, v, source="probe"))
         got = np.stack([_table_deriv(g, v, 2, 1) - _table_deriv(g, v, 1, 2),
                         _table_deriv(g, v, 0, 2) - _table_deriv(g, v, 2, 0),
@@ -234,3 +252,23 @@ def test_a_line_stopped_by_nan_cells_keeps_finite_attributes_on_opencl(ocl64, aw
                      cell_aware=aware)
     assert_same(ref, got, _extent(f))
     assert all(np.all(np.isfinite(a)) for a in got.point_data.values())
+
+
+def test_vorticity_beside_a_nan_hole_matches_numba(ocl64):
+    """Lines passing a NaN hole: the device's node curl takes the host's one-sided differences
+    there, so the vorticity is finite, the same as numba's, and exact for v = (1, 0.2 + x^2, 0.1)
+    (curl (0, 0, 2x), linear: the one-sided 3-point differences and the trilinear samples are
+    exact)."""
+    from test_integrate_attributes import _holed
+
+    f, _, nan = _holed(lambda x, y, z: (1.0 + 0 * x, 0.2 + x**2, 0.1 + 0 * z))
+    ax = f.grid.axes
+    seeds = np.array([[ax[0][1], y, z] for y in np.linspace(ax[1][2], ax[1][7], 5)
+                      for z in np.linspace(ax[2][2], ax[2][6], 4)])
+    ref, got = _both(f, seeds, ocl64, attributes=("vorticity",), max_length=2.0)
+    assert_same(ref, got, _extent(f))
+    w = got.point_data["vorticity"]
+    assert np.isfinite(w).all()
+    np.testing.assert_allclose(w, np.stack([0 * w[:, 0], 0 * w[:, 0], 2 * got.points[:, 0]], 1),
+                               rtol=0, atol=1e-9)
+    assert nan.any()

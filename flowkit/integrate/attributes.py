@@ -34,15 +34,90 @@ def check(field: Field, names) -> None:
 
 def curl(field: Field) -> np.ndarray:
     """Curl of the node vector field, (nx, ny, nz, 3): second-order differences on the actual
-    (possibly non-uniform) node coordinates, one-sided at bounded ends, wrapped on periodic axes."""
+    (possibly non-uniform) node coordinates, one-sided at bounded ends, wrapped on periodic axes;
+    next to non-finite data (NaN holes) the one-sided differences of :func:`fallback_stencils`,
+    so that only the non-finite nodes themselves get a NaN curl."""
     g = field.grid
     v = field.vector
-    d = [[_deriv(v[..., comp], g.axes[ax], g.period[ax], ax) for ax in range(3)] for comp in range(3)]
-    # d[comp][axis] = ∂v_comp/∂x_axis
+    d = []  # d[comp][axis] = ∂v_comp/∂x_axis
+    for comp in range(3):
+        f = v[..., comp]
+        finite = np.isfinite(f)
+        finite = None if finite.all() else finite
+        d.append([_deriv(f, g.axes[ax], g.period[ax], ax, finite) for ax in range(3)])
     return np.stack([d[2][1] - d[1][2], d[0][2] - d[2][0], d[1][0] - d[0][1]], axis=-1)
 
 
-def _deriv(f: np.ndarray, c: np.ndarray, period: float, axis: int) -> np.ndarray:
+def _deriv(f: np.ndarray, c: np.ndarray, period: float, axis: int,
+           finite: np.ndarray | None = None) -> np.ndarray:
+    """∂f/∂x along ``axis``: :func:`gradient`; where its stencil meets a non-finite value, the
+    first stencil of :func:`fallback_stencils` whose values are all finite (else NaN).
+    ``finite``: np.isfinite(f), or None when all of f is finite."""
+    d = gradient(f, c, period, axis)
+    if finite is None:
+        return d
+    # nodes whose standard stencil meets non-finite data: the gradient of the mask is NaN there
+    hit = np.moveaxis(np.isnan(gradient(np.where(finite, 0.0, np.nan), c, period, axis)), axis, 0)
+    idx = np.nonzero(hit)  # (node along the axis, then the other two indices)
+    if idx[0].size == 0:
+        return d
+    fm = np.moveaxis(f, axis, 0)
+    nodes, weights = fallback_stencils(c, period)
+    best = np.full(idx[0].size, np.nan)
+    todo = np.ones(idx[0].size, bool)
+    for cand in range(nodes.shape[1]):
+        q = nodes[idx[0], cand]  # (m, 3) nodes, -1 unused
+        w = weights[idx[0], cand]
+        usable = todo & (q[:, 0] >= 0)
+        acc = np.zeros(idx[0].size)
+        for slot in range(q.shape[1]):
+            qs = q[:, slot]
+            val = np.where(qs >= 0, fm[(np.maximum(qs, 0),) + idx[1:]], 0.0)
+            usable &= np.isfinite(val)
+            acc += w[:, slot] * val
+        best[usable] = acc[usable]
+        todo &= ~usable
+    out = np.moveaxis(d, axis, 0).copy()
+    out[idx] = best
+    return np.moveaxis(out, 0, axis)
+
+
+def fallback_stencils(c: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
+    """The one-sided differences tried, in order, at a node whose standard stencil (:func:
+    `gradient`) meets non-finite data: 3-point forward, 3-point backward (second order on the
+    node coordinates), 2-point forward, 2-point backward.  Returns (nodes (n, 4, 3) int32, -1
+    unused or unavailable; weights (n, 4, 3)).  Stencils stay inside the node range (none wrap on
+    a periodic axis).  The OpenCL kernel applies the same table (opencl/vertex.py)."""
+    n = c.size
+    nodes = np.full((n, 4, 3), -1, np.int32)
+    w = np.zeros((n, 4, 3))
+    i = np.arange(n)
+    # 3-point forward at i from i, i+1, i+2 (derivative of the quadratic through them)
+    f3 = i[: max(n - 2, 0)]
+    h1, h2 = c[f3 + 1] - c[f3], c[f3 + 2] - c[f3 + 1]
+    nodes[f3, 0] = np.stack([f3, f3 + 1, f3 + 2], axis=1)
+    w[f3, 0] = np.stack([-(2 * h1 + h2) / (h1 * (h1 + h2)), (h1 + h2) / (h1 * h2),
+                         -h1 / (h2 * (h1 + h2))], axis=1)
+    # 3-point backward at i from i, i-1, i-2
+    b3 = i[2:]
+    h1, h2 = c[b3] - c[b3 - 1], c[b3 - 1] - c[b3 - 2]
+    nodes[b3, 1] = np.stack([b3, b3 - 1, b3 - 2], axis=1)
+    w[b3, 1] = np.stack([(2 * h1 + h2) / (h1 * (h1 + h2)), -(h1 + h2) / (h1 * h2),
+                         h1 / (h2 * (h1 + h2))], axis=1)
+    f2 = i[: max(n - 1, 0)]
+    h = c[f2 + 1] - c[f2]
+    nodes[f2, 2, :2] = np.stack([f2, f2 + 1], axis=1)
+    w[f2, 2, :2] = np.stack([-1.0 / h, 1.0 / h], axis=1)
+    b2 = i[1:]
+    h = c[b2] - c[b2 - 1]
+    nodes[b2, 3, :2] = np.stack([b2, b2 - 1], axis=1)
+    w[b2, 3, :2] = np.stack([1.0 / h, -1.0 / h], axis=1)
+    return nodes, w
+
+
+def gradient(f: np.ndarray, c: np.ndarray, period: float, axis: int) -> np.ndarray:
+    """np.gradient along ``axis`` on the node coordinates ``c``: second order, one-sided at
+    bounded ends, wrapped on a periodic axis (NaN wherever its stencil meets NaN)."""
     n = c.size
     if period > 0 and n >= 3:
         # wrap: neighbours across the period join the stencil

@@ -145,6 +145,7 @@ class OpenCLAdvance:
         there (only the stencil table, kilobytes, is uploaded); kept while the field is."""
         cl = self.cl
         nodes, weights, k = vertex.stencils(field.grid)
+        fb_nodes, fb_weights = vertex.fallbacks(field.grid)
         shape = field.grid.shape
         curl = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE,
                          int(np.prod(shape)) * 3 * self.dtype.itemsize)
@@ -153,7 +154,7 @@ class OpenCLAdvance:
         glob = -(-n // self.local) * self.local
         knl(self.q_run, (glob,), (self.local,), *(np.int32(s) for s in shape), vec_buf,
             self._buffer(nodes, np.int32), self._buffer(weights, self.dtype), np.int32(k),
-            curl).wait()
+            self._buffer(fb_nodes, np.int32), self._buffer(fb_weights, self.dtype), curl).wait()
         return curl
 
     # -- one pass ----------------------------------------------------------------------------

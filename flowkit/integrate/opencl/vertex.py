@@ -79,7 +79,7 @@ def stencils(grid, block: int = 256) -> tuple[np.ndarray, np.ndarray, int]:
 
     Returns (nodes (sum n, K) int32, weights (sum n, K) float64, K): row ``offset(axis) + i``
     lists the nodes (along that axis; -1 = unused) whose values enter d/dx_axis at node i, and
-    their weights.  Taken from ``attributes._deriv`` itself, applied to unit vectors (the weights)
+    their weights.  Taken from ``attributes.gradient`` itself, applied to unit vectors (the weights)
     and to NaN unit vectors (which nodes enter, also with weight 0, so that NaN data poisons the
     same derivatives as on the host).
     """
@@ -92,8 +92,8 @@ def stencils(grid, block: int = 256) -> tuple[np.ndarray, np.ndarray, int]:
             m = min(n, lo + block) - lo
             e = np.zeros((n, m))
             e[lo + np.arange(m), np.arange(m)] = 1.0
-            w = _attributes._deriv(e, c, float(grid.period[ax]), 0)
-            hit = np.isnan(_attributes._deriv(np.where(e > 0, np.nan, 0.0), c,
+            w = _attributes.gradient(e, c, float(grid.period[ax]), 0)
+            hit = np.isnan(_attributes.gradient(np.where(e > 0, np.nan, 0.0), c,
                                               float(grid.period[ax]), 0))
             r, q = np.nonzero(hit)
             rows_all.append(base + r)
@@ -111,3 +111,11 @@ def stencils(grid, block: int = 256) -> tuple[np.ndarray, np.ndarray, int]:
     nodes[rows, slot] = cols
     weights[rows, slot] = w
     return nodes, weights, k
+
+
+def fallbacks(grid) -> tuple[np.ndarray, np.ndarray]:
+    """``attributes.fallback_stencils`` of the three axes, rows as in :func:`stencils`:
+    (nodes (sum n, 4, 3) int32, weights (sum n, 4, 3))."""
+    parts = [_attributes.fallback_stencils(grid.axes[ax], float(grid.period[ax])) for ax in range(3)]
+    return (np.ascontiguousarray(np.concatenate([p[0] for p in parts])),
+            np.ascontiguousarray(np.concatenate([p[1] for p in parts])))
