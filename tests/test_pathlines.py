@@ -116,8 +116,8 @@ def test_bad_options_and_series():
         P.pathlines(SERIES, [[0, 0, 0]], direction="both")
     with pytest.raises(OptionsError, match="adaptive"):
         P.pathlines(SERIES, [[0, 0, 0]], method="rk4")
-    with pytest.raises(OptionsError, match="vorticity"):
-        P.pathlines(SERIES, [[0, 0, 0]], attributes=("vorticity",))
+    with pytest.raises(KeyError, match="unknown pathline attribute 'vort'"):
+        P.pathlines(SERIES, [[0, 0, 0]], attributes=("vort",))
     with pytest.raises(ValueError, match="two snapshots"):
         P.pathlines(SERIES[:1], [[0, 0, 0]])
     other = FLOW.to_field(shape=6, bounds=[[-2, 2], [-2, 2], [-1, 1]], t=2.5)
@@ -146,3 +146,20 @@ def test_heated_room_series_end_to_end():
     assert np.all((T >= 300 - 1e-9) & (T <= 600 + 1e-9))
     assert np.all(np.isfinite(lines.points)) and np.all(lines.points >= -1e-9)
     assert np.all(lines.points <= [10 + 1e-9, 5 + 1e-9, 10 + 1e-9])
+
+
+def test_vorticity_follows_the_rotation_rate_in_time():
+    """Rotation at rate omega0 + omega1 t: vorticity (0, 0, 2 (omega0 + omega1 t)), linear in
+    space and time, so the node curl of each snapshot, its trilinear samples and the linear
+    interpolation between the two snapshots around a vertex are all exact."""
+    rng = np.random.default_rng(5)
+    seeds = np.c_[rng.uniform(-0.8, 0.8, (6, 2)), rng.uniform(-0.5, 0.5, 6)]
+    lines = P.pathlines(SERIES, seeds, 0.2, rtol=1e-8, max_time=1.5,
+                        attributes=("vorticity", "vorticity_magnitude"))
+    t = lines.point_data["time"]
+    want = 2 * (FLOW.omega0 + FLOW.omega1 * t)
+    w = lines.point_data["vorticity"]
+    assert w.shape == (lines.n_points, 3) and len(np.unique(np.round(t, 6))) > 20
+    np.testing.assert_allclose(w[:, :2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(w[:, 2], want, rtol=1e-12)
+    np.testing.assert_allclose(lines.point_data["vorticity_magnitude"], want, rtol=1e-12)

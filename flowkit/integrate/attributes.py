@@ -131,6 +131,15 @@ def gradient(f: np.ndarray, c: np.ndarray, period: float, axis: int) -> np.ndarr
     return np.gradient(f, c, axis=axis, edge_order=2 if n >= 3 else 1)
 
 
+def sample_grid_vectors(field: Field, w: np.ndarray, points) -> np.ndarray:
+    """Node vectors ``w`` (nx, ny, nz, 3) on the field's grid, sampled trilinearly at ``points``
+    as the field itself is (NaN outside)."""
+    out = np.empty((points.shape[0], 3))
+    status = np.empty(points.shape[0], np.int8)
+    interp.sample_vectors(*field.grid.kernel_args(), w, np.ascontiguousarray(points), out, status)
+    return out
+
+
 def compute(field: Field, names, points, t, s, seeds_per_vertex) -> dict[str, np.ndarray]:
     """Attributes ``names`` at the vertices ``points`` (N, 3)."""
     check(field, names)
@@ -143,11 +152,7 @@ def compute(field: Field, names, points, t, s, seeds_per_vertex) -> dict[str, np
 
     def vorticity():
         if "vorticity" not in cache:
-            w = curl(field)
-            out = np.empty((points.shape[0], 3))
-            status = np.empty(points.shape[0], np.int8)
-            interp.sample_vectors(*field.grid.kernel_args(), w, np.ascontiguousarray(points), out, status)
-            cache["vorticity"] = out
+            cache["vorticity"] = sample_grid_vectors(field, curl(field), points)
         return cache["vorticity"]
 
     out = {}

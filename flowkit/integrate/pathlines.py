@@ -37,6 +37,7 @@ from numba import njit, prange
 from ..fields import Field
 from ..fields.interp import locate_axis, trilinear_vector
 from ..lines import Lines
+from . import attributes as _attributes
 from .kernel import (
     O_ATOL,
     O_BETA,
@@ -67,7 +68,8 @@ NEW, RUNNING, DONE = 0, 1, 2
 # float options: the streamline kernel's columns up to O_STAG
 NFO = O_STAG + 1
 
-POINT_ATTRIBUTES = ("time", "arc_length", "speed", "velocity", "distance_to_seed")
+POINT_ATTRIBUTES = ("time", "arc_length", "speed", "velocity", "vorticity", "vorticity_magnitude",
+                    "distance_to_seed")
 BUFFER_VERTICES = 1 << 22  # vertices held by one kernel launch (all lines together)
 
 R_OUT, R_MAXLEN, R_MAXTIME = int(Reason.OUT_OF_DOMAIN), int(Reason.MAX_LENGTH), int(Reason.MAX_TIME)
@@ -422,7 +424,9 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
     as the sweep reaches them and dropped when it has passed them (at most two in memory).
     ``vector`` names the vector array of snapshot files.  ``options``/``kw``: TraceOptions (method, rtol, atol, max_time = duration since release,
     max_length, max_steps, step, min_step, max_step, stagnation, direction forward|backward,
-    attributes among time, arc_length, speed, velocity, distance_to_seed and scalar names).
+    attributes among time, arc_length, speed, velocity, vorticity, vorticity_magnitude,
+    distance_to_seed and scalar names; velocity, vorticity and scalars interpolated linearly in
+    time between the two snapshots around each vertex).
     """
     opts = _check_options(options if options is not None else TraceOptions(), kw)
     times, sources = _series(series)
@@ -443,14 +447,19 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
     method = opts.method_obj
     mc, ma, mb, me, _e2, mp, mi = method.kernel_arrays()
     held: dict[int, Field] = {}
+    curls: dict[int, np.ndarray] = {}  # node curl of a held snapshot, when vorticity is asked for
+    vort = any(a in ("vorticity", "vorticity_magnitude") for a in opts.attributes)
     setup = fa = fb = None
     for k in order:
         fa = fb = None  # no reference may keep a passed snapshot alive
         for old in [i for i in held if i not in (k, k + 1)]:
             del held[old]  # drop the snapshot the sweep has passed before loading the next one
+            curls.pop(old, None)
         for i in (k, k + 1):
             if i not in held:
                 held[i] = _load(sources[i], vector)
+                if vort:
+                    curls[i] = _attributes.curl(held[i])
         fa, fb = held[k], held[k + 1]
         if setup is None:
             setup = _Setup(fa, opts)
@@ -475,7 +484,8 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
             owner = np.repeat(active, out_n)
             pts, tv = out_p[keep], out_t[keep]
             chunks.append((owner, pts, tv, out_s[keep],
-                           _sampled(opts.attributes, fa, fb, ta, tb, pts, tv)))
+                           _sampled(opts.attributes, fa, fb, ta, tb, pts, tv,
+                                    (curls.get(k), curls.get(k + 1)))))
             busy = (si[active, I_STATUS] == RUNNING) & (sf[active, F_T] != goal)
             active = active[busy]
     still = si[:, I_STATUS]
@@ -498,10 +508,6 @@ def _check_options(opts: TraceOptions, kw) -> TraceOptions:
     if opts.spacing is not None or opts.count is not None:
         raise OptionsError("pathlines: options spacing and count are not supported "
                            "(vertices are the accepted steps)")
-    for a in opts.attributes:
-        if a in ("vorticity", "vorticity_magnitude"):
-            raise OptionsError(f"pathlines: attribute '{a}' is not available (it would need the "
-                               f"curl of every snapshot)")
     return opts
 
 
@@ -563,14 +569,19 @@ class _Setup:
                              f"snapshot's {self.shape}; pathlines need one grid for the series")
 
 
-def _sampled(names, fa: Field, fb: Field, ta, tb, pts, tv) -> dict:
-    """Attributes that need the field at the vertices, interpolated in time like the velocity."""
+def _sampled(names, fa: Field, fb: Field, ta, tb, pts, tv, curls) -> dict:
+    """Attributes that need the field at the vertices, interpolated in time like the velocity
+    (the vorticity: the two snapshots' node curls ``curls``, each sampled trilinearly)."""
     out = {}
     a = ((tv - ta) / (tb - ta))
     for name in names:
         if name in ("speed", "velocity"):
             if "velocity" not in out:
                 out["velocity"] = (1 - a)[:, None] * fa.sample(pts)[0] + a[:, None] * fb.sample(pts)[0]
+        elif name in ("vorticity", "vorticity_magnitude"):
+            if "vorticity" not in out:
+                wa, wb = (_attributes.sample_grid_vectors(fa, w, pts) for w in curls)
+                out["vorticity"] = (1 - a)[:, None] * wa + a[:, None] * wb
         elif name in fa.scalars:
             out[name] = (1 - a) * fa.sample_scalar(name, pts)[0] + a * fb.sample_scalar(name, pts)[0]
     return out
@@ -589,7 +600,8 @@ def _assemble(chunks, n, seeds, release, si, opts, times, sources) -> Lines:
         sampled = {k: np.concatenate([c[4][k] for c in chunks])[order] for k in chunks[0][4]}
     else:
         owner, pts, tv, sv = np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0), np.zeros(0)
-        sampled = {"velocity": np.zeros((0, 3)), **{k: np.zeros(0) for k in opts.attributes}}
+        sampled = {**{k: np.zeros(0) for k in opts.attributes}, "velocity": np.zeros((0, 3)),
+                   "vorticity": np.zeros((0, 3))}
     pd = {"time": tv}
     for name in opts.attributes:
         if name == "arc_length":
@@ -598,6 +610,8 @@ def _assemble(chunks, n, seeds, release, si, opts, times, sources) -> Lines:
             pd[name] = np.linalg.norm(pts - seeds[owner], axis=1)
         elif name == "speed":
             pd[name] = np.linalg.norm(sampled["velocity"], axis=1)
+        elif name == "vorticity_magnitude":
+            pd[name] = np.linalg.norm(sampled["vorticity"], axis=1)
         elif name != "time":
             pd[name] = sampled[name]
     offsets = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=n))])
