@@ -62,7 +62,7 @@ def _deriv(f: np.ndarray, c: np.ndarray, period: float, axis: int,
     if idx[0].size == 0:
         return d
     fm = np.moveaxis(f, axis, 0)
-    nodes, weights = fallback_stencils(c, period)
+    nodes, weights = fallback_stencils(c)
     best = np.full(idx[0].size, np.nan)
     todo = np.ones(idx[0].size, bool)
     for cand in range(nodes.shape[1]):
@@ -82,12 +82,12 @@ def _deriv(f: np.ndarray, c: np.ndarray, period: float, axis: int,
     return np.moveaxis(out, 0, axis)
 
 
-def fallback_stencils(c: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
+def fallback_stencils(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The one-sided differences tried, in order, at a node whose standard stencil (:func:
     `gradient`) meets non-finite data: 3-point forward, 3-point backward (second order on the
     node coordinates), 2-point forward, 2-point backward.  Returns (nodes (n, 4, 3) int32, -1
-    unused or unavailable; weights (n, 4, 3)).  Stencils stay inside the node range (none wrap on
-    a periodic axis).  The OpenCL kernel applies the same table (opencl/vertex.py)."""
+    unused or unavailable; weights (n, 4, 3)) for the node coordinates ``c``.  Stencils stay inside
+    the node range (none wraps on a periodic axis).  The OpenCL kernel applies the same table (opencl/vertex.py)."""
     n = c.size
     nodes = np.full((n, 4, 3), -1, np.int32)
     w = np.zeros((n, 4, 3))
