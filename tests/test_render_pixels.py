@@ -169,3 +169,43 @@ def test_renderers_on_two_contexts_do_not_mix_gl_objects():
         other.release()
     assert not np.array_equal(first, gray)
     np.testing.assert_array_equal(again, first)
+
+
+@pytest.mark.parametrize("strips", ["vertex", "geometry"])
+def test_attributes_follow_a_cubic_between_drawn_points(strips):
+    # 7 vertices of a curved attribute on a straight line, every one drawn: the colour between
+    # them follows the PCHIP cubic through their values and slopes (what the level of detail
+    # measures against), not the straight interpolation between them
+    from flowkit.render.simplify import arc_parameter, hermite, slopes
+    n = 7
+    x = np.linspace(-1, 1, n)
+    v = 0.5 + 0.45 * np.sin(2.2 * x)
+    lines = straight((-1, 0, 0), (1, 0, 0), n=n, v=v)
+    s = style(Band(ColorMap("gray", "v", (0.0, 1.0)), 4.0), background=WHITE, antialias="none")
+    with LineRenderer(lines, tolerance=0.0, strips=strips) as r:
+        img = r.render(s, SIZE, FACE_ON)
+        assert r.prepare(s)[0].hermite == (0,)
+    st, en = np.array([0]), np.array([n])
+    pts = lines.points
+    arc = arc_parameter(pts, st, en)
+    m = slopes(v, arc, st, en)
+    xs = project(lines.bounds(), FACE_ON, SIZE, [[-1, 0, 0], [1, 0, 0]])[:, 0]
+    worst_linear = 0.0
+    for c in range(int(xs[0]) + 2, int(xs[1]) - 1):
+        at = (c + 0.5 - xs[0]) / (xs[1] - xs[0]) * arc[-1]  # arc under the pixel centre
+        i = min(np.searchsorted(arc, at) - 1, n - 2)
+        want = 255 * hermite(v, m, arc, i, i + 1, at)
+        assert abs(int(img[50, c, 0]) - want) <= 2.5, (c, img[50, c, 0], want)
+        worst_linear = max(worst_linear, abs(255 * np.interp(at, arc, v) - want))
+    assert worst_linear > 4  # the cubic is not the straight interpolation here
+
+
+def test_attributes_linear_along_the_arc_skip_the_cubic():
+    n = 50
+    t = np.linspace(0, 1, n)
+    lines = straight((-1, 0, 0), (1, 0, 0), n=n, lin=3 * t + 1, sq=t**2)
+    with LineRenderer(lines) as r:
+        flags, _ = r.prepare(style(Band(ColorMap("gray", "lin", (0.0, 4.0)), 4.0)))
+        assert flags.hermite == ()
+        flags, _ = r.prepare(style(Band(ColorMap("gray", "sq", (0.0, 1.0)), 4.0)))
+        assert flags.hermite == (0,)

@@ -19,8 +19,10 @@ from flowkit.render.simplify import (
     attribute_importance,
     attribute_tolerances,
     geometry_importance,
+    hermite,
     runs,
     select,
+    slopes,
 )
 
 BLACK, WHITE = (0, 0, 0, 1), (1, 1, 1, 1)
@@ -114,22 +116,42 @@ def test_attribute_keeps_the_vertices_its_colormap_needs():
     n = 1000
     x = np.linspace(0, 1, n)
     pts = np.c_[x, np.zeros(n), np.zeros(n)]  # straight: geometry keeps only the ends
-    lines = Lines(pts, [0, n], {"lin": x.copy(), "sq": x**2})
+    wave = np.sin(6 * np.pi * x)
+    lines = Lines(pts, [0, n], {"lin": x.copy(), "sq": x**2, "wave": wave})
     s, e = runs(lines)
     arc = arc_parameter(pts, s, e)
     assert arc[-1] == pytest.approx(1.0)
-    imp_lin = attribute_importance(lines.point_data["lin"], arc, s, e)
-    imp_sq = attribute_importance(lines.point_data["sq"], arc, s, e)
-    assert np.nanmax(np.where(np.isinf(imp_lin), 0, imp_lin)) < 1e-9  # linear: nothing needed
-    st = style(Band(ColorMap("viridis", "sq", (0.0, 1.0)), 2.0))
+    for name in ("lin", "sq"):  # what a cubic through the ends draws exactly needs nothing
+        v = lines.point_data[name]
+        imp = attribute_importance(v, slopes(v, arc, s, e), arc, s, e)
+        assert np.isinf(imp[[0, -1]]).all() and imp[1:-1].max() < 1e-12, name
+    m = slopes(wave, arc, s, e)
+    imp = attribute_importance(wave, m, arc, s, e)
+    st = style(Band(ColorMap("viridis", "wave", (-1.0, 1.0)), 2.0))
     tol = attribute_tolerances(st, 0.25, {})
-    assert tol == {"sq": pytest.approx(1 / 512)}
-    keep = imp_sq > 0.5 * tol["sq"]
+    assert tol == {"wave": pytest.approx(2 / 512)}
+    keep = imp > 0.5 * tol["wave"]
     ids, _ = select(pts, geometry_importance(pts, s, e), np.eye(4), (0.0, 1.0), 0.25, keep, s, e)
     kept = np.array(_kept(ids)[0])
-    # piecewise-linear interpolation of x^2 through the kept vertices is within the tolerance
-    err = np.abs(np.interp(x, x[kept], x[kept] ** 2) - x**2).max()
-    assert err <= tol["sq"] and 5 < len(kept) < n / 4
+    # the interpolant the fragments get between the kept vertices is within the tolerance
+    err = max(np.abs(hermite(wave, m, arc, i, j, arc[i:j + 1]) - wave[i:j + 1]).max()
+              for i, j in itertools.pairwise(kept))
+    assert err <= tol["wave"] and 8 < len(kept) < n / 10
+    # linear interpolation through them would miss by far more
+    assert np.abs(np.interp(x, x[kept], wave[kept]) - wave).max() > 4 * tol["wave"]
+
+
+def test_slopes_are_pchips_and_zero_at_extrema():
+    from scipy.interpolate import PchipInterpolator
+    x = np.sort(np.random.default_rng(1).uniform(0, 3, 200))
+    pts = np.c_[x, np.zeros_like(x), np.zeros_like(x)]
+    v = np.sin(2 * x) + 0.1 * x
+    s, e = np.array([0]), np.array([x.size])
+    m = slopes(v, arc_parameter(pts, s, e), s, e)
+    ref = PchipInterpolator(x, v).derivative()(x)
+    np.testing.assert_allclose(m, ref, rtol=1e-9, atol=1e-12)
+    ext = np.flatnonzero(np.diff(np.sign(np.diff(v)))) + 1  # discrete local extrema
+    assert ext.size == 2 and np.all(m[ext] == 0.0)
 
 
 def test_no_points_nan_points_and_single_point_lines_render():

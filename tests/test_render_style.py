@@ -126,7 +126,7 @@ def test_colormap_and_width_map_styles_include_their_code_and_only_their_bands()
 
 def test_parameter_change_with_same_flags_updates_uniforms_only():
     lines = helices(3, 50)
-    lines.point_data["T"] = np.linspace(0, 1, lines.n_points)
+    lines.point_data["T"] = np.linspace(0, 1, lines.n_points) ** 2  # curved, as speed: same flags
     base = style(Band(ColorMap("viridis", "speed", (0, 1)), 2.0), Band((0, 0, 0, 1), 1.0, 0.1))
     with LineRenderer(lines) as r:
         cache = program_cache(r.ctx)

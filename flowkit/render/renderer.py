@@ -43,9 +43,12 @@ from .simplify import (
     attribute_tolerances,
     displacement_importance,
     geometry_importance,
+    linear_along_arc,
+    mapped_importance,
     placed_attributes,
     runs,
     select,
+    slopes,
     split_by_range,
 )
 from .style import Style, StyleError, load_style
@@ -54,12 +57,19 @@ TOLERANCE = 0.25  # level-of-detail tolerance on software rasterizers, output pi
 
 
 def _current(method):
-    """Run a LineRenderer method with the renderer's context current."""
+    """Run a LineRenderer method with the renderer's context current (leaving it current for
+    the caller when called from another such method: moderngl's exit releases the context)."""
 
     @functools.wraps(method)
     def wrapper(self, *args, **kwargs):
-        with self.ctx:
+        if getattr(self, "_in_context", False):
             return method(self, *args, **kwargs)
+        self._in_context = True
+        try:
+            with self.ctx:
+                return method(self, *args, **kwargs)
+        finally:
+            self._in_context = False
 
     return wrapper
 
@@ -108,14 +118,18 @@ class LineRenderer:
             raise ValueError(f"{lines.n_points} points: too many to draw in one call")
         self._xyz = np.ascontiguousarray(lines.points, np.float64)
         self._importance: dict[str | None, np.ndarray] = {}  # None: geometry
-        self._displacement: dict[str, np.ndarray] = {}  # per attribute, world units
+        # per attribute (placement) or (attribute, value tolerance) (mapped), world units
+        self._displacement: dict[str | tuple[str, float], np.ndarray] = {}
         self._lod: tuple | None = None  # (key, importance) of the last level-of-detail input
-        self._arc: np.ndarray | None = None
+        self._slopes: dict[str, np.ndarray] = {}  # per attribute, d(value)/d(arc)
+        self._is_linear: dict[str, bool] = {}  # per attribute: linear along the arc
+        # arc length from each run's start: the parameter of the attributes' Hermite interpolant
+        self._arc = arc_parameter(self._xyz, self._starts, self._stops)
         self._frame_key = None
         self._ranges: dict[str, float] = {}
         # moderngl does not switch contexts per call: make ours current around all GL work
         with self.ctx:
-            self._points = self._texture(np.asarray(lines.points, np.float32), 3)
+            self._points = self._texture(np.c_[lines.points, self._arc].astype(np.float32), 4)
             self._ids = self.ctx.buffer(reserve=4)  # per frame: kept point ids (simplify.select)
             self._ibo = self.ctx.buffer(reserve=4)  # per frame: strip indices with restarts
         self.n_indices = self.n_drawn = 0
@@ -185,7 +199,7 @@ class LineRenderer:
             if v.ndim != 1:
                 raise StyleError(f"attribute '{name}' has shape {v.shape}; a style can only map "
                                  f"scalar (one value per vertex) attributes")
-            buf = self._texture(np.asarray(v, dtype=np.float32), 1)
+            buf = self._texture(np.c_[v, self._slopes_of(name)].astype(np.float32), 2)
             self._attrs[name] = buf
         return buf
 
@@ -221,31 +235,59 @@ class LineRenderer:
             if name is None:
                 imp = geometry_importance(self._xyz, self._starts, self._stops)
             else:
-                if self._arc is None:
-                    self._arc = arc_parameter(self._xyz, self._starts, self._stops)
                 v = np.asarray(self._attr_values(name), np.float64)
-                imp = attribute_importance(v, self._arc, self._starts, self._stops)
+                imp = attribute_importance(v, self._slopes_of(name), self._arc, self._starts,
+                                           self._stops)
             self._importance[name] = imp
         return imp
+
+    def _linear(self, style: Style) -> tuple[str, ...]:
+        """The attributes ``style`` reads that change linearly along the arc (see shader_flags)."""
+        for name in style.attributes():
+            if name not in self._is_linear:
+                v = self._attr_values(name)  # (not 1-D: refused when uploaded)
+                self._is_linear[name] = v.ndim == 1 and linear_along_arc(
+                    v, self._arc, self._starts, self._stops)
+        return tuple(n for n in style.attributes() if self._is_linear[n])
+
+    def _slopes_of(self, name: str) -> np.ndarray:
+        m = self._slopes.get(name)
+        if m is None:
+            v = np.asarray(self._attr_values(name), np.float64)
+            m = self._slopes[name] = slopes(v, self._arc, self._starts, self._stops)
+        return m
 
     def _displacement_of(self, name: str) -> np.ndarray:
         imp = self._displacement.get(name)
         if imp is None:
-            if self._arc is None:
-                self._arc = arc_parameter(self._xyz, self._starts, self._stops)
             v = np.asarray(self._attr_values(name), np.float64)
-            imp = displacement_importance(v, self._arc, self._starts, self._stops)
+            imp = displacement_importance(v, self._slopes_of(name), self._arc, self._starts,
+                                          self._stops)
             self._displacement[name] = imp
+        return imp
+
+    def _mapped_of(self, name: str, t: float) -> np.ndarray:
+        imp = self._displacement.get((name, t))
+        if imp is None:
+            if t > 0:
+                v = np.asarray(self._attr_values(name), np.float64)
+                imp = mapped_importance(v, self._slopes_of(name), self._arc, self._starts,
+                                        self._stops, 0.5 * t)
+            else:
+                imp = np.where(self._importance_of(name) > 0, np.float32(np.inf), np.float32(0))
+            self._displacement[(name, t)] = imp
         return imp
 
     def _lod_importance(self, placed: tuple[str, ...], tols: dict[str, float]) -> np.ndarray:
         """World-unit importance of every point, compared per frame with the pixel tolerance at
         the point's depth: the geometry's; the displacement of the attributes that place shapes
         and patterns; and for the attributes mapped to colour, width or a transfer function,
-        their displacement where their value error exceeds half its tolerance.  So a dropped
-        point either changes a mapped value by less than its tolerance, or shifts the mapped
-        picture along the line by less than the pixel tolerance (as dropping geometry moves the
-        line).  A tolerance of 0 (no known use) keeps every point where the value is not linear."""
+        their displacement where their value error exceeds half its tolerance (one DP hierarchy
+        for both conditions, ``simplify.mapped_importance``).  So a dropped point either changes
+        a mapped value by less than its tolerance, or shifts the mapped picture along the line
+        by less than the pixel tolerance (as dropping geometry moves the line).  Errors are
+        those of the Hermite interpolant the shaders draw.  A tolerance of 0 (no known use)
+        keeps every point where that interpolant is not exact."""
         key = (placed, tuple(sorted(tols.items())))
         if self._lod is not None and self._lod[0] == key:
             return self._lod[1]
@@ -253,9 +295,7 @@ class LineRenderer:
         for name in placed:
             imp = np.maximum(imp, self._displacement_of(name))
         for name, t in tols.items():
-            off = self._importance_of(name) > 0.5 * t
-            shift = self._displacement_of(name) if t > 0 else np.float32(np.inf)
-            imp = np.maximum(imp, np.where(off, shift, np.float32(0.0)))
+            imp = np.maximum(imp, self._mapped_of(name, t))
         self._lod = (key, imp)
         return imp
 
@@ -337,9 +377,10 @@ class LineRenderer:
         return self._fbos[key]
 
     # -- drawing --------------------------------------------------------------------------------
+    @_current  # compiles
     def prepare(self, style: Style) -> tuple[ShaderFlags, moderngl.Program]:
         samples = self.samples_for(style)
-        flags = shader_flags(style, msaa=samples > 1, strip_stage=self.strips)
+        flags = shader_flags(style, samples > 1, self.strips, linear=self._linear(style))
         return flags, self.programs.get(flags)
 
     def samples_for(self, style: Style) -> int:
@@ -423,7 +464,8 @@ class LineRenderer:
             for alone, first, count in self._draws:
                 p = prog
                 if alone is not None:  # one line style without the transfer function
-                    p = self.programs.get(shader_flags(style, samples > 1, self.strips, alone))
+                    p = self.programs.get(shader_flags(style, samples > 1, self.strips, alone,
+                                                       self._linear(style)))
                     uniforms["u_half"] = style.scale * style.styles[alone].total_width * ss
                 else:
                     uniforms["u_half"] = half * ss

@@ -87,6 +87,8 @@ class ShaderFlags:
     transfer_blend: bool = False
     strip_stage: str = "vertex"  # STRIP_STAGES
     narrow: bool = True  # narrow the strip per point by the built-in shapes (see narrow_slots)
+    # attribute slots interpolated as cubic Hermite along the arc (the others: linearly)
+    hermite: tuple[int, ...] = ()
 
     @property
     def shapes(self) -> list[str]:
@@ -124,11 +126,14 @@ class ShaderFlags:
 
 
 def shader_flags(style: Style, msaa: bool, strip_stage: str = "vertex",
-                 only: str | None = None) -> ShaderFlags:
+                 only: str | None = None, linear: tuple[str, ...] = ()) -> ShaderFlags:
     """Flags for ``style``; ``msaa`` says whether the target is multisampled; ``strip_stage``
     (STRIP_STAGES) which shader stage builds the strips.  ``only``: the program that draws line
     style ``only`` alone, without the transfer function (for the segments that lie wholly in
-    one of its ranges); attribute slots and band numbers stay those of the whole style."""
+    one of its ranges); attribute slots and band numbers stay those of the whole style.
+    Attributes are interpolated along the arc between the drawn points as cubic Hermite curves
+    (values and slopes, see ``simplify.slopes``), those named in ``linear`` (linear along the
+    arc, where the cubic adds nothing) linearly."""
     check_strip_stage(strip_stage)
     slots = {name: i for i, name in enumerate(style.attributes())}
     used = style.used_styles() if only is None else [only]
@@ -184,6 +189,7 @@ def shader_flags(style: Style, msaa: bool, strip_stage: str = "vertex",
         transfer_attr=tattr,
         transfer_blend=blend,
         strip_stage=strip_stage,
+        hermite=tuple(k for name, k in slots.items() if name not in linear),
     )
 
 

@@ -6,18 +6,21 @@ setup.  Once per renderer, every vertex gets a Douglas-Peucker importance: the d
 units) from the vertex to the chord that replaces it when the DP recursion picks it, capped by its
 parent's importance so that importance only falls down the hierarchy; ``importance > tol`` then
 selects exactly the vertices DP keeps at tolerance ``tol``.  Attributes get their own importance:
-the deviation from linear interpolation along the arc length (what the rasterizer does between
-two kept vertices).  Attributes that only place shapes and patterns along the line get a
-displacement importance instead (world units, like the geometry's): how far along the arc the
-linear interpolant puts the vertex's value -- a pattern feature -- from where it belongs; it is
-0 wherever the attribute is linear in arc length (arc_length itself needs no vertices of its own)
-and inf at a local extremum (a value the interpolant would never reach).  Per frame a vertex is
+the deviation from what the fragment shader draws between two kept vertices, a cubic Hermite
+interpolant along the arc length through their values and slopes (``slopes``: monotone, PCHIP,
+so nothing overshoots between the traced vertices; a straight line of values stays straight).
+Attributes that only place shapes and patterns along the line get a displacement importance
+instead (world units, like the geometry's): how far along the arc the interpolant puts the
+vertex's value -- a pattern feature -- from where it belongs, to first order the value error
+over the slope; 0 wherever the interpolant is exact (arc_length itself needs no vertices of its
+own) and inf at a local extremum the interpolant misses.  Per frame a vertex is
 kept when its geometric or displacement importance exceeds half the pixel tolerance (converted
 to world units at the vertex's depth), or when a mapped attribute's (colour, width, transfer)
-importance exceeds half that attribute's tolerance *and* its displacement exceeds half the
-pixel tolerance: a dropped vertex either changes the mapped value by less than its tolerance or
-moves the mapped picture along the line by less than the pixel tolerance (see
-``LineRenderer._lod_importance``); the ends of every run are always kept.  Halves because the kept set is the union of
+displacement exceeds half the pixel tolerance on a chord where its value error exceeds half that
+attribute's tolerance (``mapped_importance``: both conditions in one DP hierarchy): a dropped
+vertex either changes the mapped value by less than its tolerance or moves the mapped picture
+along the line by less than the pixel tolerance (see ``LineRenderer._lod_importance``); the
+ends of every run are always kept.  Halves because the kept set is the union of
 several DP sets, which at most doubles each one's error.
 
 Runs are the pieces of a line with consecutive finite points (>= 2 of them); the renderer draws
@@ -35,7 +38,7 @@ from ..lines import Lines
 from .style import ColorMap, Style, WidthMap
 
 RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
-GEOMETRY, VALUE, DISPLACEMENT = 0, 1, 2  # importance kinds
+GEOMETRY, VALUE, DISPLACEMENT, MAPPED = 0, 1, 2, 3  # importance kinds
 OUTSIDE = 1e200  # displacement at an extremum: overflows to inf in the float32 importance
 MAX_SPAN = 4096  # longer pieces are split at their middle (which shares its parent's importance)
 # unscanned, so the DP cost stays O(n log n + n * MAX_SPAN) whatever the curve
@@ -63,22 +66,66 @@ def arc_parameter(points: np.ndarray, starts: np.ndarray, stops: np.ndarray) -> 
 def geometry_importance(points, starts, stops) -> np.ndarray:
     """float32 DP importance (world units) of every point; inf at run ends, 0 outside runs."""
     p = np.ascontiguousarray(points, np.float64)
-    return _importance(p, np.zeros(0), np.zeros(0), starts, stops, GEOMETRY)
+    return _importance(p, np.zeros(0), np.zeros(0), np.zeros(0), starts, stops, GEOMETRY)
 
 
-def attribute_importance(values, arc, starts, stops) -> np.ndarray:
-    """float32 DP importance (attribute units) of a scalar attribute along the arc parameter;
-    inf where a value is not finite."""
+def slopes(values, arc, starts, stops) -> np.ndarray:
+    """d(value)/d(arc) at every point for the Hermite interpolant the shaders draw: PCHIP's
+    (Fritsch-Carlson: the weighted harmonic mean of the two adjacent secants, 0 where they
+    differ in sign, so the interpolant is monotone between consecutive points; at run ends the
+    limited three-point formula, as scipy's PchipInterpolator); 0 outside runs and where a
+    neighbour is not finite."""
+    return _slopes(np.ascontiguousarray(values, np.float64), arc, starts, stops)
+
+
+def linear_along_arc(values, arc, starts, stops, rtol: float = 1e-6) -> bool:
+    """Whether ``values`` change linearly with the arc parameter along every run (within
+    ``rtol`` of their largest magnitude, below what float32 shaders resolve): then the
+    shaders interpolate them linearly, which is exact, and skip the cubic."""
+    v = np.asarray(values, np.float64)
+    if not starts.size:
+        return True
+    n = stops - starts
+    first, last = np.repeat(starts, n), np.repeat(stops - 1, n)
+    i = np.arange(n.sum()) + np.repeat(starts - np.r_[0, np.cumsum(n)[:-1]], n)
+    L = arc[last] - arc[first]
+    t = np.divide(arc[i] - arc[first], L, out=np.zeros_like(L), where=L > 0)
+    err = np.abs(v[i] - v[first] - t * (v[last] - v[first]))
+    scale = np.max(np.abs(v[i])) if i.size else 0.0
+    return bool(np.all(np.isfinite(err)) and err.max(initial=0.0) <= rtol * scale)
+
+
+def hermite(values, slopes_, arc, i, j, at) -> np.ndarray:
+    """The interpolant between points i and j (what a fragment gets) at arc parameters ``at``."""
+    L = arc[j] - arc[i]
+    u = np.clip((np.asarray(at, np.float64) - arc[i]) / L, 0.0, 1.0) if L > 0 else 0.0 * at
+    d = values[j] - values[i]
+    a, b = slopes_[i] * L - d, d - slopes_[j] * L
+    return values[i] + u * (d + (1.0 - u) * ((1.0 - u) * a + u * b))
+
+
+def attribute_importance(values, slopes_, arc, starts, stops) -> np.ndarray:
+    """float32 DP importance (attribute units) of a scalar attribute along the arc parameter,
+    against the Hermite interpolant of ``slopes``; inf where a value is not finite."""
     v = np.ascontiguousarray(values, np.float64)
-    return _importance(np.zeros((0, 3)), v, arc, starts, stops, VALUE)
+    return _importance(np.zeros((0, 3)), v, slopes_, arc, starts, stops, VALUE)
 
 
-def displacement_importance(values, arc, starts, stops) -> np.ndarray:
+def displacement_importance(values, slopes_, arc, starts, stops) -> np.ndarray:
     """float32 DP importance (world units along the arc) of an attribute that places shapes or
-    patterns: the distance between where the linear interpolant reaches the vertex's value and
-    the vertex; inf at local extrema and where a value is not finite."""
+    patterns: how far from the vertex the Hermite interpolant reaches the vertex's value (the
+    value error over the slope there); inf at local extrema it misses and where a value is not
+    finite."""
     v = np.ascontiguousarray(values, np.float64)
-    return _importance(np.zeros((0, 3)), v, arc, starts, stops, DISPLACEMENT)
+    return _importance(np.zeros((0, 3)), v, slopes_, arc, starts, stops, DISPLACEMENT)
+
+
+def mapped_importance(values, slopes_, arc, starts, stops, value_tol: float) -> np.ndarray:
+    """float32 DP importance (world units) of an attribute mapped to colour, width or a transfer
+    function: its displacement where its value error exceeds ``value_tol``, else 0 -- one
+    hierarchy, so that the kept points satisfy both conditions on the same chords."""
+    v = np.ascontiguousarray(values, np.float64)
+    return _importance(np.zeros((0, 3)), v, slopes_, arc, starts, stops, MAPPED, value_tol)
 
 
 @numba.njit(cache=True)
@@ -92,7 +139,37 @@ def _arc(p, starts, stops):
 
 
 @numba.njit(cache=True)
-def _deviation(p, v, s, i, j, m, kind):
+def _slopes(v, s, starts, stops):
+    m = np.zeros(v.size)
+    for r in range(starts.size):
+        a, b = starts[r], stops[r] - 1
+        for i in range(a, b + 1):
+            if b - a == 1:  # two points: the secant
+                g = (v[b] - v[a]) / (s[b] - s[a]) if s[b] > s[a] else 0.0
+            elif i == a or i == b:  # three-point one-sided, limited as PCHIP's ends are
+                k = 1 if i == a else -1
+                h0, h1 = abs(s[i + k] - s[i]), abs(s[i + 2 * k] - s[i + k])
+                d0 = (v[i + k] - v[i]) / (s[i + k] - s[i]) if h0 > 0.0 else 0.0
+                d1 = (v[i + 2 * k] - v[i + k]) / (s[i + 2 * k] - s[i + k]) if h1 > 0.0 else 0.0
+                g = ((2.0 * h0 + h1) * d0 - h0 * d1) / (h0 + h1) if h0 + h1 > 0.0 else 0.0
+                if np.sign(g) != np.sign(d0):
+                    g = 0.0
+                elif np.sign(d0) != np.sign(d1) and abs(g) > 3.0 * abs(d0):
+                    g = 3.0 * d0
+            else:
+                h0, h1 = s[i] - s[i - 1], s[i + 1] - s[i]
+                d0 = (v[i] - v[i - 1]) / h0 if h0 > 0.0 else 0.0
+                d1 = (v[i + 1] - v[i]) / h1 if h1 > 0.0 else 0.0
+                g = 0.0
+                if d0 * d1 > 0.0:  # weighted harmonic mean; 0 at an extremum
+                    w0, w1 = 2.0 * h1 + h0, h1 + 2.0 * h0
+                    g = (w0 + w1) / (w0 / d0 + w1 / d1)
+            m[i] = g if math.isfinite(g) else 0.0
+    return m
+
+
+@numba.njit(cache=True)
+def _deviation(p, v, dv, s, i, j, m, kind, vtol):
     if kind == GEOMETRY:  # distance from point m to the segment i-j
         dx, dy, dz = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1], p[j, 2] - p[i, 2]
         mx, my, mz = p[m, 0] - p[i, 0], p[m, 1] - p[i, 1], p[m, 2] - p[i, 2]
@@ -100,24 +177,27 @@ def _deviation(p, v, s, i, j, m, kind):
         t = 0.0 if dd == 0.0 else min(max((mx * dx + my * dy + mz * dz) / dd, 0.0), 1.0)
         ex, ey, ez = mx - t * dx, my - t * dy, mz - t * dz
         return math.sqrt(ex * ex + ey * ey + ez * ez)
-    t = (s[m] - s[i]) / (s[j] - s[i]) if s[j] > s[i] else (m - i) / (j - i)
-    if kind == VALUE:  # deviation from linear interpolation along the arc between i and j
-        return abs(v[m] - v[i] - t * (v[j] - v[i]))
-    # displacement: the interpolant reaches v[m] at fraction u of i..j instead of t
-    # A value outside the chord's (an extremum) must be kept: beyond every finite importance
-    # (inf once stored as float32), ordered by how far out it lies so that DP splits at the
-    # extremum itself and keeps only the extrema, not every point around them
-    dv = v[j] - v[i]
-    if dv == 0.0:
-        return 0.0 if v[m] == v[i] else OUTSIDE * (1.0 + min(abs(v[m] - v[i]), 1e50))
-    u = (v[m] - v[i]) / dv
-    if not 0.0 <= u <= 1.0:
-        return OUTSIDE * (1.0 + min(max(-u, u - 1.0), 1e50))
-    return abs(u - t) * (s[j] - s[i])
+    L = s[j] - s[i]
+    u = (s[m] - s[i]) / L if L > 0.0 else (m - i) / (j - i)
+    d = v[j] - v[i]  # the Hermite interpolant through i and j (see ``hermite``)
+    h = v[i] + u * (d + (1.0 - u) * ((1.0 - u) * (dv[i] * L - d) + u * (d - dv[j] * L)))
+    err = abs(v[m] - h)
+    if kind == VALUE:
+        return err
+    if kind == MAPPED and not err > vtol:  # (NaN: kept below)
+        return 0.0
+    # displacement: the value error over the slope.  Where the slope is 0 (an extremum) and the
+    # value is missed, beyond every finite importance (inf once stored as float32), ordered by
+    # the error so that DP splits at the extremum itself and keeps only the extrema
+    if err == 0.0:
+        return 0.0
+    if dv[m] == 0.0:
+        return OUTSIDE * (1.0 + min(err, 1e50))
+    return err / abs(dv[m])
 
 
 @numba.njit(cache=True, parallel=True)
-def _importance(p, v, s, starts, stops, kind):
+def _importance(p, v, dv, s, starts, stops, kind, vtol=0.0):
     n = p.shape[0] if kind == GEOMETRY else v.shape[0]
     imp = np.zeros(n, np.float32)
     for r in numba.prange(starts.size):  # runs are independent
@@ -139,7 +219,7 @@ def _importance(p, v, s, starts, stops, kind):
             else:
                 best, k = -1.0, i + 1
                 for m in range(i + 1, j):
-                    d = _deviation(p, v, s, i, j, m, kind)
+                    d = _deviation(p, v, dv, s, i, j, m, kind, vtol)
                     if not d <= 1e300:  # NaN or inf (non-finite attribute): always keep
                         d = np.inf
                     if d > best:

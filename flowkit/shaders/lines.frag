@@ -19,8 +19,16 @@ uniform float u_tfblend;    // half-width of the colour blend zone around a boun
 {% endif %}
 in float g_b;
 in float g_z;
+{% if hermite %}
+in float g_s;               // arc parameter along the line
+flat in vec2 g_seg;         // this segment: arc at its start, 1 / its arc length
+{% endif %}
 {% for k in range(n_attrs) %}
-in float g_attr{{ k }};
+in float v_attr{{ k }};       // attribute slot {{ k }} interpolated linearly,
+{% if k in hermite %}
+flat in vec2 g_h{{ k }};      // its cubic's terms on this segment,
+{% endif %}
+float g_attr{{ k }};          // its value here, set first thing in main()
 {% endfor %}
 out vec4 f_color;
 {% for style in styles %}
@@ -95,6 +103,15 @@ bool style{{ s }}(float b, float fw, out vec4 color, out float depth) {
 {% endfor %}
 
 void main() {
+{% if hermite %}
+    // attributes: cubic Hermite along the arc between the drawn points (what the level of
+    // detail measures its errors against), not only the rasterizer's linear interpolation
+    // (kept for slots that are linear along the arc)
+    float u = clamp((g_s - g_seg.x) * g_seg.y, 0.0, 1.0);
+{% endif %}
+{% for k in range(n_attrs) %}
+    g_attr{{ k }} = v_attr{{ k }}{% if k in hermite %} + u * (1.0 - u) * ((1.0 - u) * g_h{{ k }}.x + u * g_h{{ k }}.y){% endif %};
+{% endfor %}
     float b = abs(g_b);
     float fw = max(fwidth(g_b), 1e-6);
 {% if pattern_slots %}

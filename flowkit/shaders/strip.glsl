@@ -103,6 +103,14 @@ vec4 strip_offset(vec3 a, vec3 p, vec3 c, float hw) {
     return vec4(half_world * s, half_world / unit);
 }
 
+// An attribute's cubic Hermite terms on a segment from (value, slope) a to b, L arc-length units
+// long: a fragment at fraction u of the segment adds u (1 - u) ((1 - u) x + u y) to the linear
+// interpolant, which then meets both slopes as well as both values
+vec2 hermite_terms(vec2 a, vec2 b, float L) {
+    float d = b.x - a.x;
+    return vec2(a.y * L - d, d - b.y * L);
+}
+
 // One strip vertex: p moved to side sgn (+1 / -1) by `off` (from strip_offset)
 void strip_vertex(vec3 p, vec4 off, float sgn) {
     vec3 v = p + sgn * off.xyz;
