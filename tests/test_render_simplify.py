@@ -211,12 +211,12 @@ def test_frames_reselect_only_when_the_view_changes():
 
 def test_mapped_attribute_points_drop_where_their_colours_move_less_than_the_tolerance():
     # a colormapped attribute changing fast along a straight line: a point whose value the
-    # linear interpolant misses by more than half a LUT step is still dropped when the colours
+    # interpolant misses by more than half a LUT step is still dropped when the colours
     # around it move along the line by less than the pixel tolerance, so a line shown smaller
     # keeps fewer points (a value tolerance alone keeps the same ones at every size)
     n = 4000
     x = np.linspace(-1, 1, n)
-    lines = Lines(np.c_[x, np.zeros(n), np.zeros(n)], [0, n], {"v": np.sinh(3 * x)})
+    lines = Lines(np.c_[x, np.zeros(n), np.zeros(n)], [0, n], {"v": np.sinh(3 * x) + np.sin(12 * x)})
     s = style(Band(ColorMap("viridis", "v", (-10, 10)), 3.0), background=WHITE, antialias="none")
     value_only = None
     kept = []

@@ -96,11 +96,13 @@ def linear_along_arc(values, arc, starts, stops, rtol: float = 1e-6) -> bool:
 
 
 def hermite(values, slopes_, arc, i, j, at) -> np.ndarray:
-    """The interpolant between points i and j (what a fragment gets) at arc parameters ``at``."""
+    """The interpolant between points i and j (what a fragment gets) at arc parameters ``at``:
+    the cubic through their values with their slopes, limited so that it is monotone between
+    them (``_end_terms``)."""
     L = arc[j] - arc[i]
     u = np.clip((np.asarray(at, np.float64) - arc[i]) / L, 0.0, 1.0) if L > 0 else 0.0 * at
     d = values[j] - values[i]
-    a, b = slopes_[i] * L - d, d - slopes_[j] * L
+    a, b = _end_terms(d, slopes_[i] * L, slopes_[j] * L)
     return values[i] + u * (d + (1.0 - u) * ((1.0 - u) * a + u * b))
 
 
@@ -169,6 +171,22 @@ def _slopes(v, s, starts, stops):
 
 
 @numba.njit(cache=True)
+def _end_terms(d, ga, gb):
+    """The cubic's end terms on a segment whose values change by d, with end slopes times its
+    length ga, gb, after Fritsch-Carlson's limits (slopes against the change's sign become 0,
+    their ratios to the secant are scaled into the circle of radius 3), so that the cubic is
+    monotone on the segment and never leaves its end values.  lines.vert does the same."""
+    if d == 0.0:
+        return 0.0, 0.0
+    al, be = max(ga / d, 0.0), max(gb / d, 0.0)
+    r = al * al + be * be
+    if r > 9.0:
+        t = 3.0 / math.sqrt(r)
+        al, be = al * t, be * t
+    return (al - 1.0) * d, (1.0 - be) * d
+
+
+@numba.njit(cache=True)
 def _deviation(p, v, dv, s, i, j, m, kind, vtol):
     if kind == GEOMETRY:  # distance from point m to the segment i-j
         dx, dy, dz = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1], p[j, 2] - p[i, 2]
@@ -179,8 +197,9 @@ def _deviation(p, v, dv, s, i, j, m, kind, vtol):
         return math.sqrt(ex * ex + ey * ey + ez * ez)
     L = s[j] - s[i]
     u = (s[m] - s[i]) / L if L > 0.0 else (m - i) / (j - i)
-    d = v[j] - v[i]  # the Hermite interpolant through i and j (see ``hermite``)
-    h = v[i] + u * (d + (1.0 - u) * ((1.0 - u) * (dv[i] * L - d) + u * (d - dv[j] * L)))
+    d = v[j] - v[i]  # the interpolant through i and j (see ``hermite``)
+    a, b = _end_terms(d, dv[i] * L, dv[j] * L)
+    h = v[i] + u * (d + (1.0 - u) * ((1.0 - u) * a + u * b))
     err = abs(v[m] - h)
     if kind == VALUE:
         return err

@@ -105,10 +105,16 @@ vec4 strip_offset(vec3 a, vec3 p, vec3 c, float hw) {
 
 // An attribute's cubic Hermite terms on a segment from (value, slope) a to b, L arc-length units
 // long: a fragment at fraction u of the segment adds u (1 - u) ((1 - u) x + u y) to the linear
-// interpolant, which then meets both slopes as well as both values
+// interpolant, which then meets both values and both slopes.  The slopes are first limited as
+// Fritsch-Carlson do (simplify._end_terms), so that the cubic is monotone on the segment and
+// never leaves its end values (the strip widths assume that)
 vec2 hermite_terms(vec2 a, vec2 b, float L) {
     float d = b.x - a.x;
-    return vec2(a.y * L - d, d - b.y * L);
+    if (d == 0.0) return vec2(0.0);
+    vec2 k = max(vec2(a.y, b.y) * (L / d), 0.0);
+    float r = dot(k, k);
+    if (r > 9.0) k *= 3.0 / sqrt(r);
+    return vec2((k.x - 1.0) * d, (1.0 - k.y) * d);
 }
 
 // One strip vertex: p moved to side sgn (+1 / -1) by `off` (from strip_offset)
