@@ -475,6 +475,78 @@ def _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax, beta, 
     return hnext, errp, errpb
 
 
+@njit(cache=True, inline="always")
+def _scaled_rms(fo, y, k, i, j):
+    """RMS over the position of (k[i] - k[j]) (k[i] alone when j < 0) scaled by atol + rtol |y|,
+    rescaled where the squares overflow (huge speeds)."""
+    s2 = 0.0
+    for a in range(3):
+        v = k[i, a] - (k[j, a] if j >= 0 else 0.0)
+        s2 += (v / (fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a]))) ** 2
+    r = math.sqrt(s2 / 3.0)
+    if not (r < math.inf):
+        w0 = (k[i, 0] - (k[j, 0] if j >= 0 else 0.0)) / (fo[O_ATOL] + fo[O_RTOL] * abs(y[0]))
+        w1 = (k[i, 1] - (k[j, 1] if j >= 0 else 0.0)) / (fo[O_ATOL + 1] + fo[O_RTOL + 1] * abs(y[1]))
+        w2 = (k[i, 2] - (k[j, 2] if j >= 0 else 0.0)) / (fo[O_ATOL + 2] + fo[O_RTOL + 2] * abs(y[2]))
+        r = _norm3(w0, w1, w2) / math.sqrt(3.0)
+    return r
+
+
+@njit(cache=True, inline="always")
+def _initial_guess(fo, y, k):
+    """First half of Hairer's initial step (Hairer, Nørsett & Wanner I, II.4), on the position:
+    (h0, |f(y0)|) from the scaled norms of y0 and f(y0) = k[0].  The caller evaluates the field
+    at y0 + h0 k[0] into k[1] and passes both to ``_initial_step``.  Shared with pathlines."""
+    d0 = 0.0
+    for a in range(3):
+        d0 += (y[a] / (fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a]))) ** 2
+    d0 = math.sqrt(d0 / 3.0)
+    d1 = _scaled_rms(fo, y, k, 0, -1)
+    return (1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1), d1
+
+
+@njit(cache=True, inline="always")
+def _initial_step(fo, y, k, h0, d1, kexp, ok):
+    """Second half: the step from the change of f over h0 (k[1] - k[0]); ``ok`` False when the
+    second evaluation failed (NaN data)."""
+    d2 = _scaled_rms(fo, y, k, 1, 0) / h0
+    if not ok or max(d1, d2) <= 1e-15 or not math.isfinite(d2):
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / kexp)
+    return min(100.0 * h0, h1)
+
+
+@njit(cache=True, inline="always")
+def _load_state(sf, si, l, y, k, i_lastrej, beta):
+    """A suspended line's step state (written by ``_save_state``): the position and dependent
+    variable into y, f(y) into k[0]; returns (parameter, h, errp, errp ** beta, accepted,
+    rejected, last step rejected).  The pathline kernel keeps the same float columns."""
+    for a in range(3):
+        y[a] = sf[l, S_Y + a]
+    y[3] = sf[l, S_DEP]
+    for a in range(4):
+        k[0, a] = sf[l, S_K0 + a]
+    errp = sf[l, S_ERRP]
+    return (sf[l, S_TAU], sf[l, S_H], errp, errp ** beta, si[l, I_NACC], si[l, I_NREJ],
+            si[l, i_lastrej] != 0)
+
+
+@njit(cache=True, inline="always")
+def _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, i_lastrej):
+    for a in range(3):
+        sf[l, S_Y + a] = y[a]
+    sf[l, S_DEP] = y[3]
+    sf[l, S_TAU] = tau
+    sf[l, S_H] = h
+    sf[l, S_ERRP] = errp
+    for a in range(4):
+        sf[l, S_K0 + a] = k[0, a]
+    si[l, I_NACC] = n_acc
+    si[l, I_NREJ] = n_rej
+    si[l, i_lastrej] = 1 if last_rej else 0
+
+
 # -- one line -------------------------------------------------------------------------------------
 @njit(cache=True)
 def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
@@ -552,39 +624,11 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         errpb = errp ** beta
         h = fo[O_H0]
         if h <= 0.0 and sp > 0.0:
-            # Hairer's initial step (Hairer, Nørsett & Wanner I, II.4), on the position only
-            d0 = 0.0
-            d1 = 0.0
-            for a in range(3):
-                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a])
-                d0 += (y[a] / sc) ** 2
-                d1 += (k[0, a] / sc) ** 2
-            d0 = math.sqrt(d0 / 3.0)
-            d1 = math.sqrt(d1 / 3.0)
-            if not (d1 < math.inf):  # the squares overflowed (huge speeds): rescaled norm
-                d1 = _norm3(k[0, 0] / (fo[O_ATOL] + fo[O_RTOL] * abs(y[0])),
-                            k[0, 1] / (fo[O_ATOL + 1] + fo[O_RTOL + 1] * abs(y[1])),
-                            k[0, 2] / (fo[O_ATOL + 2] + fo[O_RTOL + 2] * abs(y[2]))) / math.sqrt(3.0)
-            h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+            h0, d1 = _initial_guess(fo, y, k)
             for a in range(3):
                 yt[a] = y[a] + d * h0 * k[0, a]
             _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 1)
-            d2 = 0.0
-            for a in range(3):
-                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a])
-                d2 += ((k[1, a] - k[0, a]) / sc) ** 2
-            d2 = math.sqrt(d2 / 3.0)
-            if not (d2 < math.inf):
-                d2 = _norm3((k[1, 0] - k[0, 0]) / (fo[O_ATOL] + fo[O_RTOL] * abs(y[0])),
-                            (k[1, 1] - k[0, 1]) / (fo[O_ATOL + 1] + fo[O_RTOL + 1] * abs(y[1])),
-                            (k[1, 2] - k[0, 2]) / (fo[O_ATOL + 2] + fo[O_RTOL + 2] * abs(y[2]))
-                            ) / math.sqrt(3.0)
-            d2 = d2 / h0
-            if max(d1, d2) <= 1e-15 or not math.isfinite(d2):
-                h1 = max(1e-6, h0 * 1e-3)
-            else:
-                h1 = (0.01 / max(d1, d2)) ** (1.0 / kexp)
-            h = min(100.0 * h0, h1)
+            h = _initial_step(fo, y, k, h0, d1, kexp, True)
         elif h <= 0.0:
             h = 1.0
         h = d * min(h, hmax)
@@ -596,18 +640,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             sf[l, S_LAST_S] = 0.0
             si[l, I_M] = 1 if emit == EMIT_SPACING else 0
     else:
-        for a in range(3):
-            y[a] = sf[l, S_Y + a]
-        y[3] = sf[l, S_DEP]
-        tau = sf[l, S_TAU]
-        h = sf[l, S_H]
-        errp = sf[l, S_ERRP]
-        errpb = errp ** beta
-        for a in range(4):
-            k[0, a] = sf[l, S_K0 + a]
-        n_acc = si[l, I_NACC]
-        n_rej = si[l, I_NREJ]
-        last_rej = si[l, I_LASTREJ] != 0
+        tau, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, I_LASTREJ, beta)
         if aware:
             for a in range(3):
                 ci[a] = si[l, I_CELL + a]
@@ -906,20 +939,11 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             break
 
     # save the state
+    _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, I_LASTREJ)
     for a in range(3):
-        sf[l, S_Y + a] = y[a]
         sf[l, S_LO + a] = cf[a]
         sf[l, S_HI + a] = cf[3 + a]
         si[l, I_CELL + a] = ci[a]
-    sf[l, S_DEP] = y[3]
-    sf[l, S_TAU] = tau
-    sf[l, S_H] = h
-    sf[l, S_ERRP] = errp
-    for a in range(4):
-        sf[l, S_K0 + a] = k[0, a]
-    si[l, I_NACC] = n_acc
-    si[l, I_NREJ] = n_rej
-    si[l, I_LASTREJ] = 1 if last_rej else 0
     if suspended:
         return
     si[l, I_STATUS] = DONE

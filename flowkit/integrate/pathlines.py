@@ -51,16 +51,23 @@ from .kernel import (
     O_RTOL,
     O_SAFETY,
     O_STAG,
+    S_K0,
+    S_TAU,
     _dense,
+    _initial_guess,
+    _initial_step,
+    _load_state,
     _next_step,
+    _save_state,
     _stage_point,
 )
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES, Reason
 
-# float state columns: position (3), time, arc length, step, previous error, k0 (u, v, w, |v|)
-F_Y, F_T, F_S, F_H, F_ERRP, F_K0 = 0, 3, 4, 5, 6, 7
-NF = 11
+# float state columns, the streamline kernel's first ones (kernel._load_state / _save_state):
+# position (3), time (its parameter), arc length (its dependent variable), step, previous error,
+# k0 (u, v, w, |v|)
+NF = S_K0 + 4
 # int state columns
 I_STATUS, I_REASON, I_NACC, I_NREJ, I_LASTREJ = 0, 1, 2, 3, 4
 NI = 5
@@ -196,31 +203,13 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
         errpb = errp ** beta
         h = fo[O_H0]
         if h <= 0.0:
-            # Hairer's initial step (Hairer, Nørsett & Wanner I, II.4) on the position, as kernel.py
-            d0 = 0.0
-            d1 = 0.0
-            for a in range(3):
-                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a])
-                d0 += (y[a] / sc) ** 2
-                d1 += (k[0, a] / sc) ** 2
-            d0 = math.sqrt(d0 / 3.0)
-            d1 = math.sqrt(d1 / 3.0)
-            h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+            h0, d1 = _initial_guess(fo, y, k)
             h0 = min(h0, hmax, max(abs(goal - t), 1e-300))
             for a in range(3):
                 yt[a] = y[a] + d * h0 * k[0, a]
             ok = _velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv,
                            v0, v1, t0, t1, k, 1)
-            d2 = 0.0
-            for a in range(3):
-                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a])
-                d2 += ((k[1, a] - k[0, a]) / sc) ** 2
-            d2 = math.sqrt(d2 / 3.0) / h0
-            if not ok or max(d1, d2) <= 1e-15 or not math.isfinite(d2):
-                h1 = max(1e-6, h0 * 1e-3)
-            else:
-                h1 = (0.01 / max(d1, d2)) ** (1.0 / kexp)
-            h = min(100.0 * h0, h1)
+            h = _initial_step(fo, y, k, h0, d1, kexp, ok)
         h = d * min(h, hmax)
         si[l, I_STATUS] = RUNNING
         out_p[slot, 0, 0], out_p[slot, 0, 1], out_p[slot, 0, 2] = px, py, pz
@@ -228,18 +217,7 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
         out_s[slot, 0] = 0.0
         out_n[slot] = 1
     else:
-        for a in range(3):
-            y[a] = sf[l, F_Y + a]
-        y[3] = sf[l, F_S]
-        t = sf[l, F_T]
-        h = sf[l, F_H]
-        errp = sf[l, F_ERRP]
-        errpb = errp ** beta
-        for a in range(4):
-            k[0, a] = sf[l, F_K0 + a]
-        n_acc = si[l, I_NACC]
-        n_rej = si[l, I_NREJ]
-        last_rej = si[l, I_LASTREJ] != 0
+        t, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, I_LASTREJ, beta)
 
     reason = -1
     while out_n[slot] < B and t != goal:
@@ -386,17 +364,7 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
         if reason >= 0:
             break
 
-    for a in range(3):
-        sf[l, F_Y + a] = y[a]
-    sf[l, F_S] = y[3]
-    sf[l, F_T] = t
-    sf[l, F_H] = h
-    sf[l, F_ERRP] = errp
-    for a in range(4):
-        sf[l, F_K0 + a] = k[0, a]
-    si[l, I_NACC] = n_acc
-    si[l, I_NREJ] = n_rej
-    si[l, I_LASTREJ] = 1 if last_rej else 0
+    _save_state(sf, si, l, y, k, t, h, errp, n_acc, n_rej, last_rej, I_LASTREJ)
     if reason >= 0:
         si[l, I_STATUS] = DONE
         si[l, I_REASON] = reason
@@ -486,7 +454,7 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
             chunks.append((owner, pts, tv, out_s[keep],
                            _sampled(opts.attributes, fa, fb, ta, tb, pts, tv,
                                     (curls.get(k), curls.get(k + 1)))))
-            busy = (si[active, I_STATUS] == RUNNING) & (sf[active, F_T] != goal)
+            busy = (si[active, I_STATUS] == RUNNING) & (sf[active, S_TAU] != goal)
             active = active[busy]
     still = si[:, I_STATUS]
     si[still == RUNNING, I_REASON] = R_LEFT
