@@ -28,9 +28,6 @@ from scipy.integrate import solve_ivp
 from flowkit.fields import Field, interp
 from flowkit.fields.analytic import ABCFlow
 from flowkit.io.atomic import atomic_path
-from flowkit.numba_cache import drop_stale
-
-drop_stale()  # a working tree's edits must not be timed as cached old code
 
 RESULTS = Path(__file__).resolve().parent / "results"
 TWO_PI = 2.0 * np.pi

@@ -1,5 +1,10 @@
 """flowkit: streamlines through gridded 3D vector fields, stored in HDF5, rendered with line styles."""
 
+from . import numba_cache
+
+if numba_cache.IN_WORKING_TREE:  # edited sources: no stale compiled kernels (see numba_cache)
+    numba_cache.drop_stale()
+
 from .fields import Field, Grid
 from .integrate.options import TraceOptions
 from .integrate.trace import trace, trace_to_file

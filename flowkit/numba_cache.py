@@ -4,8 +4,9 @@ numba's on-disk cache (``cache=True``) checks only the source file that defines 
 kernels inline helpers from other files: lanes.py compiles kernel.py's step loop into its own
 code, the integrators inline fields/interp.py.  After an edit to kernel.py, lanes.py's cache
 would still run the old loop.  ``drop_stale`` removes each numba package's cache when it is
-older than a source file of that package or of a package others inline from.  An installed
-flowkit never changes under its caches; the tests and benchmarks call this for working trees.
+older than a source file of that package or of a package others inline from.  flowkit's
+import calls it in a git working tree (a checkout installed in editable mode, where sources
+change under their caches); an installed flowkit never does, and is not touched.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
+IN_WORKING_TREE = (PACKAGE.parent / ".git").exists()
 SHARED = ("fields",)  # packages whose numba helpers others inline
 
 
