@@ -172,6 +172,25 @@ def test_curl_fallbacks_use_a_two_point_difference_only_between_two_nans():
     assert np.isnan(d[[0, 3, 5]]).all()
 
 
+def test_curl_fallbacks_wrap_across_a_periodic_seam():
+    """Beside NaN nodes next to the seam of a periodic axis, the one-sided differences take
+    their nodes across the seam (as np.gradient's wrap does), so the node on the seam keeps a
+    finite, second-order curl; with or without a last node repeating the first."""
+    for repeat in (False, True):
+        n = 40
+        x = np.linspace(0, 2 * np.pi, n + 1 if repeat else n, endpoint=repeat)
+        g = Grid.from_axes(x, np.linspace(0, 1, 5), np.linspace(0, 1, 4),
+                           periodic=(True, False, False), period=(2 * np.pi, 0.0, 0.0))
+        X = np.meshgrid(*g.axes, indexing="ij")[0]
+        v = np.stack([0 * X, np.sin(X), 0 * X], axis=-1)  # curl_z = cos x
+        v[1] = np.nan  # node 0's standard stencil (n-1, 1) and forward stencils meet NaN
+        w = attributes.curl(Field(g, v))
+        assert np.isnan(w[1]).all() and np.isfinite(w[0]).all() and np.isfinite(w[2]).all()
+        h = x[1] - x[0]
+        np.testing.assert_allclose(w[0, ..., 2], 1.0, atol=h**2)  # 3-point backward, wrapped
+        np.testing.assert_allclose(w[2, ..., 2], np.cos(x[2]), atol=h**2)
+
+
 def test_vorticity_of_a_line_passing_a_nan_hole_is_finite():
     """The uniform flow of nan_face_field has no vorticity; next to its NaN half the vertices'
     vorticity is 0, not NaN (one-sided differences at the nodes beside the NaN ones)."""

@@ -62,7 +62,7 @@ def _deriv(f: np.ndarray, c: np.ndarray, period: float, axis: int,
     if idx[0].size == 0:
         return d
     fm = np.moveaxis(f, axis, 0)
-    nodes, weights = fallback_stencils(c)
+    nodes, weights = fallback_stencils(c, period)
     best = np.full(idx[0].size, np.nan)
     todo = np.ones(idx[0].size, bool)
     for cand in range(nodes.shape[1]):
@@ -82,12 +82,28 @@ def _deriv(f: np.ndarray, c: np.ndarray, period: float, axis: int,
     return np.moveaxis(out, 0, axis)
 
 
-def fallback_stencils(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def fallback_stencils(c: np.ndarray, period: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """The one-sided differences tried, in order, at a node whose standard stencil (:func:
     `gradient`) meets non-finite data: 3-point forward, 3-point backward (second order on the
     node coordinates), 2-point forward, 2-point backward.  Returns (nodes (n, 4, 3) int32, -1
-    unused or unavailable; weights (n, 4, 3)) for the node coordinates ``c``.  Stencils stay inside
-    the node range (none wraps on a periodic axis).  The OpenCL kernel applies the same table (opencl/vertex.py)."""
+    unused or unavailable; weights (n, 4, 3)) for the node coordinates ``c``.  On a periodic
+    axis (``period`` > 0) the stencils wrap across the seam with :func:`gradient`'s neighbours
+    (a last node that repeats the first is skipped); on a bounded one they stay inside.  The
+    OpenCL kernel applies the same table (opencl/vertex.py)."""
+    n = c.size
+    if period > 0 and n >= 3:
+        # two neighbours beyond each end, as gradient's wrap takes one
+        lo = n - 1 if c[0] + period - c[-1] > 0 else n - 2
+        hi = n - 1 - lo  # 0, or 1 past a repeated node
+        ext = np.r_[lo - 1, lo, np.arange(n), hi, hi + 1]
+        ext_c = np.r_[c[[lo - 1, lo]] - period, c, c[[hi, hi + 1]] + period]
+        nodes, w = _one_sided(ext_c)
+        nodes, w = nodes[2:n + 2], w[2:n + 2]
+        return np.where(nodes >= 0, ext[np.maximum(nodes, 0)], -1).astype(np.int32), w
+    return _one_sided(c)
+
+
+def _one_sided(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = c.size
     nodes = np.full((n, 4, 3), -1, np.int32)
     w = np.zeros((n, 4, 3))

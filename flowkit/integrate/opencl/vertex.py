@@ -116,6 +116,6 @@ def stencils(grid, block: int = 256) -> tuple[np.ndarray, np.ndarray, int]:
 def fallbacks(grid) -> tuple[np.ndarray, np.ndarray]:
     """``attributes.fallback_stencils`` of the three axes, rows as in :func:`stencils`:
     (nodes (sum n, 4, 3) int32, weights (sum n, 4, 3))."""
-    parts = [_attributes.fallback_stencils(grid.axes[ax]) for ax in range(3)]
+    parts = [_attributes.fallback_stencils(grid.axes[ax], grid.period[ax]) for ax in range(3)]
     return (np.ascontiguousarray(np.concatenate([p[0] for p in parts])),
             np.ascontiguousarray(np.concatenate([p[1] for p in parts])))
