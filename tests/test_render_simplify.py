@@ -12,7 +12,7 @@ import pytest
 from render_scenes import FACE_ON, helices, style
 
 from flowkit.lines import Lines
-from flowkit.render import Band, Camera, ColorMap, LineRenderer, render_lines
+from flowkit.render import Band, Camera, ColorMap, LineRenderer, WidthMap, render_lines
 from flowkit.render.simplify import (
     MAX_SPAN,
     arc_parameter,
@@ -260,3 +260,20 @@ def test_split_by_range_puts_every_segment_in_exactly_one_strip_piece():
             a, b = ids[q[1]], ids[q[2]]
             assert ids[q[0]] == (a - 1 if a not in (0, 6) else -1)
             assert ids[q[3]] == (b + 1 if b not in (5, 10) else -1)
+
+
+def test_world_unit_width_maps_do_not_redo_the_level_of_detail_each_frame(monkeypatch):
+    # a width map in world units has a value tolerance that follows the pixel size: rounded to
+    # a power of 2, a turning camera reuses it instead of running a DP over every point per frame
+    import flowkit.render.renderer as R
+    calls = []
+    real = R.mapped_importance
+    monkeypatch.setattr(R, "mapped_importance", lambda *a: calls.append(a[-1]) or real(*a))
+    lines = helices(6, 400)
+    s = style(Band((0, 0, 0, 1), WidthMap("speed", (0.0, 1.0), 0.01, 0.05)), units="world")
+    with LineRenderer(lines) as r:
+        for k in range(8):
+            r.render(s, (160, 120), Camera(azimuth=30 + 0.2 * k))
+        assert r.n_drawn > 0
+    assert 1 <= len(calls) <= 2, calls
+    assert len(r._displacement) <= R.MAPPED_KEPT

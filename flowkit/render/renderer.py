@@ -54,6 +54,7 @@ from .simplify import (
 from .style import Style, StyleError, load_style
 
 TOLERANCE = 0.25  # level-of-detail tolerance on software rasterizers, output pixels
+MAPPED_KEPT = 4  # mapped-attribute importances kept per attribute (one per value tolerance)
 
 
 def _current(method):
@@ -267,6 +268,8 @@ class LineRenderer:
         return imp
 
     def _mapped_of(self, name: str, t: float) -> np.ndarray:
+        """``simplify.mapped_importance`` at value tolerance ``t`` (the last few per attribute
+        kept: a world-unit width map's tolerance changes with the zoom, see ``_select``)."""
         imp = self._displacement.get((name, t))
         if imp is None:
             if t > 0:
@@ -275,6 +278,9 @@ class LineRenderer:
                                         self._stops, 0.5 * t)
             else:
                 imp = np.where(self._importance_of(name) > 0, np.float32(np.inf), np.float32(0))
+            mine = [k for k in self._displacement if isinstance(k, tuple) and k[0] == name]
+            for k in mine[:-(MAPPED_KEPT - 1)]:  # oldest first (dicts keep insertion order)
+                del self._displacement[k]
             self._displacement[(name, t)] = imp
         return imp
 
@@ -321,6 +327,9 @@ class LineRenderer:
             corners = np.array(np.meshgrid(*self.bounds)).reshape(3, -1).T
             z = corners @ cam.view[2, :3] + cam.view[2, 3]
             px_min = max(float(np.min(cam.px_scale[0] * -z + cam.px_scale[1])), 1e-30)
+            # rounded down to a power of 2 (a tighter tolerance): world-unit width tolerances
+            # then stay put while the camera moves a little, and each new one costs a DP pass
+            px_min = 2.0 ** math.floor(math.log2(px_min))
             unit = 1.0 if style.units == "pixels" else style.supersample * px_min  # per output px
             tols = attribute_tolerances(style, self.tolerance, ranges, unit)
             placed = tuple(sorted(placed_attributes(style)))
