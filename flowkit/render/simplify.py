@@ -175,7 +175,8 @@ def _end_terms(d, ga, gb):
     """The cubic's end terms on a segment whose values change by d, with end slopes times its
     length ga, gb, after Fritsch-Carlson's limits (slopes against the change's sign become 0,
     their ratios to the secant are scaled into the circle of radius 3), so that the cubic is
-    monotone on the segment and never leaves its end values.  lines.vert does the same."""
+    monotone on the segment and never leaves its end values.  strip.glsl (hermite_terms) does
+    the same."""
     if d == 0.0:
         return 0.0, 0.0
     al, be = max(ga / d, 0.0), max(gb / d, 0.0)
