@@ -188,7 +188,16 @@ def _end_terms(d, ga, gb):
 
 
 @numba.njit(cache=True)
-def _deviation(p, v, dv, s, i, j, m, kind, vtol):
+def _chord(v, dv, s, i, j):
+    """The interpolant from i to j (see ``hermite``): arc length, change, the cubic's terms."""
+    L = s[j] - s[i]
+    d = v[j] - v[i]
+    a, b = _end_terms(d, dv[i] * L, dv[j] * L)
+    return L, d, a, b
+
+
+@numba.njit(cache=True)
+def _deviation(p, v, dv, s, i, j, m, kind, vtol, L, d, a, b):
     if kind == GEOMETRY:  # distance from point m to the segment i-j
         dx, dy, dz = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1], p[j, 2] - p[i, 2]
         mx, my, mz = p[m, 0] - p[i, 0], p[m, 1] - p[i, 1], p[m, 2] - p[i, 2]
@@ -196,10 +205,7 @@ def _deviation(p, v, dv, s, i, j, m, kind, vtol):
         t = 0.0 if dd == 0.0 else min(max((mx * dx + my * dy + mz * dz) / dd, 0.0), 1.0)
         ex, ey, ez = mx - t * dx, my - t * dy, mz - t * dz
         return math.sqrt(ex * ex + ey * ey + ez * ez)
-    L = s[j] - s[i]
     u = (s[m] - s[i]) / L if L > 0.0 else (m - i) / (j - i)
-    d = v[j] - v[i]  # the interpolant through i and j (see ``hermite``)
-    a, b = _end_terms(d, dv[i] * L, dv[j] * L)
     h = v[i] + u * (d + (1.0 - u) * ((1.0 - u) * a + u * b))
     err = abs(v[m] - h)
     if kind == VALUE:
@@ -238,8 +244,9 @@ def _importance(p, v, dv, s, starts, stops, kind, vtol=0.0):
                 k, e = (i + j) // 2, cap
             else:
                 best, k = -1.0, i + 1
+                L, dd, ca, cb = _chord(v, dv, s, i, j) if kind != GEOMETRY else (0.0, 0.0, 0.0, 0.0)
                 for m in range(i + 1, j):
-                    d = _deviation(p, v, dv, s, i, j, m, kind, vtol)
+                    d = _deviation(p, v, dv, s, i, j, m, kind, vtol, L, dd, ca, cb)
                     if not d <= 1e300:  # NaN or inf (non-finite attribute): always keep
                         d = np.inf
                     if d > best:
