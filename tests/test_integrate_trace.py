@@ -237,6 +237,21 @@ def test_cell_aware_steps_end_on_faces_and_match_the_reference(abc):
     assert np.mean(frac < 1e-9) > 0.9
 
 
+def test_cell_aware_fixed_steps_stay_in_their_cell(abc):
+    """A fixed step longer than a cell is cut at the faces like an adaptive one: RK4 then takes
+    one step per cell, each on that cell's polynomial (before, its stages extended the
+    polynomial a whole step beyond the cell: errors of order 1)."""
+    rng = np.random.default_rng(5)
+    seeds = rng.uniform(0, 2 * np.pi, (20, 3))
+    ref = trace(abc, seeds, method="dop853", rtol=1e-13, atol=1e-13, max_length=5.0)
+    long = trace(abc, seeds, method="rk4", step=10.0, max_length=5.0, cell_aware=True)
+    e = np.linalg.norm(_ends(long) - _ends(ref), axis=1)
+    assert np.median(e) < 1e-4  # fourth order over ~0.26-long cells
+    h = 2 * np.pi / 24
+    frac = np.abs(long.points / h - np.round(long.points / h)).min(axis=1)
+    assert np.mean(frac < 1e-9) > 0.9  # the vertices lie on grid planes
+
+
 # -- files ----------------------------------------------------------------------------------------
 def test_trace_to_file_streams_batches_and_reads_back(tmp_path, abc):
     rng = np.random.default_rng(6)

@@ -12,8 +12,9 @@ Algorithm (the OpenCL backend reproduces it step for step; docs/integrator.md sa
   the polynomial of the cell the step starts in (outside the cell it is the same smooth
   polynomial, extended); an accepted step whose end leaves the cell is cut where the dense
   output first meets a face; the coordinate is snapped onto the face, the line moves to the
-  neighbour cell and the next step starts with a fresh k0 there.  Steps are also capped at
-  ``cellfac`` times the straight-line time to the exit face so that little work is cut away.
+  neighbour cell and the next step starts with a fresh k0 there.  Steps (fixed ones too) are
+  also capped at ``cellfac`` times the straight-line time to the exit face so that little work
+  is cut away and no stage reaches far beyond the cell.
   Otherwise each stage looks up its own cell (cached while it stays in the same cell), using the
   boundary cell's polynomial, extended, for stages just outside a bounded domain.
 * Events inside an accepted step are found on the dense output (Illinois root finding in θ):
@@ -692,7 +693,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
 
         # step size: controller, cell cap, parameter limit
         hs = h
-        if aware and adaptive:
+        if aware:  # (fixed steps too: their stages would extend the cell's polynomial far out)
             t_exit = np.inf
             for a in range(3):
                 mv = d * k[0, a]
