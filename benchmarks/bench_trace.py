@@ -31,11 +31,16 @@ PLAIN_TOLS = (1e-3, 1e-4, 1e-5, 1e-6, 5e-7, 2e-7, 1e-7, 5e-8, 2e-8, 1e-8, 5e-9, 
               5e-10, 2e-10, 1e-10)
 # fixed-step RK4 as the peers run it (arc-length steps, no cell splitting) on the peers' step
 # grid, so that each tool's RK4 does identical work: at a loose level four evaluations a step
-# and no error estimate beat any adaptive run
-FLOWKIT_RK4 = (0.2, 0.1, 0.05, 0.02)
-VTK_RK45 = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)
-VTK_RK4 = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005)
-ST_STEPS = (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
+# and no error estimate beat any adaptive run.  The grid is the same for every tool, steps that
+# divide the length (streamtracer takes a step count) at most 1.6x apart (an RK4 error of 1e-4
+# needs step ~0.19: 0.2 just misses it)
+RK4_STEPS = (0.2, 0.125, 0.1, 0.08, 0.05, 0.04, 0.025, 0.02, 0.0125, 0.01, 0.005, 0.002, 0.001)
+FLOWKIT_RK4 = RK4_STEPS[:8]
+# cell-aware RK4 with a step longer than any cell: one step per cell, on its polynomial
+FLOWKIT_RK4_CELL = (1.0,)
+VTK_RK45 = (1e-3, 1e-4, 1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 3e-8, 1e-8)
+VTK_RK4 = RK4_STEPS[:11]
+ST_STEPS = RK4_STEPS
 SCIPY_TOLS = (1e-4, 1e-6, 1e-8)
 
 
@@ -136,6 +141,9 @@ def _all_runs(field, seeds, problem, skip, scipy_seeds, threads):
         for h in FLOWKIT_RK4:
             yield _job(peers.flowkit_run, field, seeds, L, method="rk4", step=h,
                        cell_aware=False)
+        for h in FLOWKIT_RK4_CELL:
+            yield _job(peers.flowkit_run, field, seeds, L, method="rk4", step=h,
+                       cell_aware=True)
     if "vtk" not in skip:
         vt = peers.VTKTracer(field)
         cell = vt.cell_diagonal
