@@ -92,9 +92,7 @@ def fallback_stencils(c: np.ndarray, period: float = 0.0) -> tuple[np.ndarray, n
     OpenCL kernel applies the same table (opencl/vertex.py)."""
     n = c.size
     if period > 0 and n >= 3:
-        # two neighbours beyond each end, as gradient's wrap takes one
-        lo = n - 1 if c[0] + period - c[-1] > 0 else n - 2
-        hi = n - 1 - lo  # 0, or 1 past a repeated node
+        lo, hi = _seam(c, period)  # two neighbours beyond each end (gradient's wrap takes one)
         ext = np.r_[lo - 1, lo, np.arange(n), hi, hi + 1]
         ext_c = np.r_[c[[lo - 1, lo]] - period, c, c[[hi, hi + 1]] + period]
         nodes, w = _one_sided(ext_c)
@@ -131,14 +129,20 @@ def _one_sided(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return nodes, w
 
 
+def _seam(c: np.ndarray, period: float) -> tuple[int, int]:
+    """The nodes beside the seam of a periodic axis: (the one below node 0, the one above the
+    last), skipping a last node that repeats the first."""
+    n = c.size
+    return (n - 1, 0) if c[0] + period - c[-1] > 0 else (n - 2, 1)
+
+
 def gradient(f: np.ndarray, c: np.ndarray, period: float, axis: int) -> np.ndarray:
     """np.gradient along ``axis`` on the node coordinates ``c``: second order, one-sided at
     bounded ends, wrapped on a periodic axis (NaN wherever its stencil meets NaN)."""
     n = c.size
     if period > 0 and n >= 3:
         # wrap: neighbours across the period join the stencil
-        wrap_cell = c[0] + period - c[-1] > 0
-        lo_i, hi_i = (n - 1, 0) if wrap_cell else (n - 2, 1)
+        lo_i, hi_i = _seam(c, period)
         lo_c = c[lo_i] - period
         hi_c = c[hi_i] + period
         ext_c = np.concatenate([[lo_c], c, [hi_c]])

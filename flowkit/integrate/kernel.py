@@ -480,15 +480,11 @@ def _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax, beta, 
 def _scaled_rms(fo, y, k, i, j):
     """RMS over the position of (k[i] - k[j]) (k[i] alone when j < 0) scaled by atol + rtol |y|,
     rescaled where the squares overflow (huge speeds)."""
-    s2 = 0.0
-    for a in range(3):
-        v = k[i, a] - (k[j, a] if j >= 0 else 0.0)
-        s2 += (v / (fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a]))) ** 2
-    r = math.sqrt(s2 / 3.0)
+    w0 = (k[i, 0] - (k[j, 0] if j >= 0 else 0.0)) / (fo[O_ATOL] + fo[O_RTOL] * abs(y[0]))
+    w1 = (k[i, 1] - (k[j, 1] if j >= 0 else 0.0)) / (fo[O_ATOL + 1] + fo[O_RTOL + 1] * abs(y[1]))
+    w2 = (k[i, 2] - (k[j, 2] if j >= 0 else 0.0)) / (fo[O_ATOL + 2] + fo[O_RTOL + 2] * abs(y[2]))
+    r = math.sqrt((w0 ** 2 + w1 ** 2 + w2 ** 2) / 3.0)
     if not (r < math.inf):
-        w0 = (k[i, 0] - (k[j, 0] if j >= 0 else 0.0)) / (fo[O_ATOL] + fo[O_RTOL] * abs(y[0]))
-        w1 = (k[i, 1] - (k[j, 1] if j >= 0 else 0.0)) / (fo[O_ATOL + 1] + fo[O_RTOL + 1] * abs(y[1]))
-        w2 = (k[i, 2] - (k[j, 2] if j >= 0 else 0.0)) / (fo[O_ATOL + 2] + fo[O_RTOL + 2] * abs(y[2]))
         r = _norm3(w0, w1, w2) / math.sqrt(3.0)
     return r
 

@@ -39,6 +39,10 @@ from ..fields.interp import locate_axis, trilinear_vector
 from ..lines import Lines
 from . import attributes as _attributes
 from .kernel import (
+    I_NACC,
+    I_NREJ,
+    I_REASON,
+    I_STATUS,
     O_ATOL,
     O_BETA,
     O_FACMAX,
@@ -68,9 +72,9 @@ from .reasons import REASON_NAMES, Reason
 # position (3), time (its parameter), arc length (its dependent variable), step, previous error,
 # k0 (u, v, w, |v|)
 NF = S_K0 + 4
-# int state columns
-I_STATUS, I_REASON, I_NACC, I_NREJ, I_LASTREJ = 0, 1, 2, 3, 4
-NI = 5
+# int state columns: the streamline kernel's first four, then the last step's rejection
+I_LASTREJ = I_NREJ + 1
+NI = I_LASTREJ + 1
 NEW, RUNNING, DONE = 0, 1, 2
 # float options: the streamline kernel's columns up to O_STAG
 NFO = O_STAG + 1
