@@ -104,8 +104,8 @@ def test_lockstep_takes_the_interior_steps():
     assert lanes.eligible(period, inv, mi, io)
     io[K.P_PASS] = K.PASS_SETUP  # start the lines, as lanes.advance does
     K.advance(*args)
-    lanes.lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf, si,
-                   out_p, out_par, out_n)
+    lanes.lockstep(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
+                   ma, mb, mi, fo, io, sf, si, out_p, out_par, out_n)
     steps = int(np.ceil(3.0 / 0.05))
     assert np.all(si[:, K.I_NACC] >= steps - 2)
     assert np.all(out_n == si[:, K.I_NACC] + 1)  # the seed and a vertex per step
@@ -114,6 +114,29 @@ def test_lockstep_takes_the_interior_steps():
     for n in range(len(seeds)):
         m = out_n[n]
         assert np.array_equal(out_p[n, :m], ref.points[ref.offsets[n]:ref.offsets[n] + m])
+
+
+def test_kernel_locates_a_point_on_a_face_afresh():
+    """The scalar kernel keeps its cached cell only while a point is strictly inside it, so a
+    point on a face gets the cell a fresh lookup gives (what the lock-step does), not the cell
+    the line came from: with the cell below cached, a point on its upper face that the lookup
+    puts in the cell above is evaluated there."""
+    args = _kernel_args(_abc(), _seeds(5), method="rk4", step=0.1, max_length=1.0,
+                        cell_aware=False)
+    gx, gy, gz, period, inv, vec = args[5:11]
+    # a node the lookup puts in the cell above it (rounding may put a node in the cell below)
+    m = next(m for m in range(1, gx.size - 2)
+             if lanes._axis_cell(gx, inv[0], gx[m]) == m)
+    ci, cf, coef, k = np.full(3, -1, np.int64), np.zeros(9), np.zeros((8, 3)), np.zeros((5, 4))
+    y, z = gy[7] + 0.3 * (gy[8] - gy[7]), gz[9] + 0.6 * (gz[10] - gz[9])
+    inside = gx[m - 1] + 0.5 * (gx[m] - gx[m - 1])
+    K._f(inside, y, z, 1, False, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+    assert ci[0] == m - 1
+    K._f(gx[m], y, z, 1, False, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 1)
+    assert ci[0] == m  # located afresh; the cell below holds the point too
+    fresh = np.full(3, -1, np.int64), np.zeros(9), np.zeros((8, 3)), np.zeros((5, 4))
+    K._f(gx[m], y, z, 1, False, gx, gy, gz, period, inv, vec, *fresh, 0)
+    assert np.array_equal(k[1], fresh[3][0])
 
 
 def test_eligible_only_where_it_applies():

@@ -263,9 +263,12 @@ def _fc(px, py, pz, param, cf, coef, k, row):
 @njit(cache=True, inline="always")
 def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row):
     """Right-hand side at p: cell-aware, the current cell's polynomial; otherwise the polynomial
-    of the cell holding p (looked up when p left the cached cell).  NaN for a NaN cell."""
-    if not aware and not (ci[0] >= 0 and cf[0] <= px <= cf[3] and cf[1] <= py <= cf[4]
-                          and cf[2] <= pz <= cf[5]):
+    of the cell holding p, looked up unless p is strictly inside the cached cell.  A point on a
+    face is located afresh, so the cell (and the rounding) depends on the point alone, not on
+    the cell the line came from: lanes.py locates every point and gets the same lines.  NaN
+    for a NaN cell."""
+    if not aware and not (ci[0] >= 0 and cf[0] < px < cf[3] and cf[1] < py < cf[4]
+                          and cf[2] < pz < cf[5]):
         _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
     return _fc(px, py, pz, param, cf, coef, k, row)
 

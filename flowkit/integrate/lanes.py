@@ -3,20 +3,25 @@
 ``kernel._advance_line`` follows one line at a time, and a line is a chain of dependent work:
 the next stage's point needs this stage's velocity, which needs this stage's cell corners, which
 on a large field are often cache misses.  Here a thread advances ``W`` lines side by side, one
-stage of all of them at a time, and asks the cache for every lane's cell (``_prefetch_cell``)
-before it evaluates any lane, so the misses of different lines overlap instead of queueing.
+stage of all of them at a time: the stage points of every lane, then a prefetch of every lane's
+cell (so the misses of different lines overlap instead of queueing), then the evaluations.  The
+stage sums and the evaluations are loops over the lanes with no branches, which LLVM turns into
+vector code (AVX-512 or AVX2 gathers of the cell corners, eight or four lanes per instruction);
+the loop over the lanes is the innermost loop, and every lane is computed whether it is still
+running or not (a stopped lane's values are not used).
 
 The arithmetic of a step is the scalar kernel's, operation for operation (the same cell choice,
 polynomial coefficients, stage sums and step update), so the lines are bit-identical to
-``kernel.advance``'s (tests/test_lanes.py).  A lane commits only a step that the scalar kernel
-would commit with no special handling: its stages finite, its end inside the domain and short
-of the length and time limits, room in the output buffer.  At anything else — a boundary, NaN
-data, stagnation, the final clipped step, a full buffer, ``max_steps`` — the lane stops before
-that step and ``kernel._advance_line`` finishes the line from the saved state.  Adaptive
-methods, cell-aware stepping, resampled output, periodic and non-uniform axes go to the scalar
-kernel whole (``eligible``).
+``kernel.advance``'s (tests/test_lanes.py).  The cell of a stage point is located afresh every
+time: the scalar kernel keeps its cached cell only while a point is strictly inside it, where
+locating it again gives the same cell, so the choice depends on the point alone.  A lane commits
+only a step that the scalar kernel would commit with no special handling: its stages finite, its
+end inside the domain and short of the length and time limits, room in the output buffer.  At
+anything else — a boundary, NaN data, stagnation, the final clipped step, a full buffer,
+``max_steps`` — the lane stops before that step and ``kernel._advance_line`` finishes the line
+from the saved state.  Adaptive methods, cell-aware stepping, resampled output, periodic and
+non-uniform axes go to the scalar kernel whole (``eligible``).
 """
-
 from __future__ import annotations
 
 import math
@@ -49,7 +54,7 @@ from .kernel import (
     S_K0,
     S_TAU,
     S_Y,
-    _prefetch_cell,
+    _prefetch,
     _put,
 )
 from .kernel import advance as advance_one_by_one
@@ -74,17 +79,16 @@ def eligible(period, inv, mi, io):
 @njit(cache=True, inline="always")
 def _axis_cell(c, inv, x):
     """Cell of x on a uniform bounded axis, as ``kernel._relocate`` finds it (clamped to the
-    end cells)."""
+    end cells), without branches: the lane loops that call it stay vector code."""
     n = c.size
     # not max/min: a NaN coordinate must become c[0], a valid index (the lane's step then fails)
     xc = x if x >= c[0] else c[0]  # noqa: FURB136
     xc = xc if xc <= c[n - 1] else c[n - 1]  # noqa: FURB136
     i = min(max(int((xc - c[0]) * inv), 0), n - 2)
-    if xc < c[i]:  # rounding of (x - c0) * inv may land one cell off
-        i -= 1
-    elif xc > c[i + 1] and i < n - 2:
-        i += 1
-    return i
+    # rounding of (x - c0) * inv may land one cell off
+    dn = xc < c[i]
+    up = (xc > c[i + 1]) & (i < n - 2) & (xc >= c[i])
+    return i - dn + up
 
 
 @njit(cache=True, inline="always")
@@ -110,65 +114,87 @@ def _component(flat, b, di, dj, c, tx, ty, tz):
 
 
 @njit(cache=True, inline="always")
-def _eval(yt, w, param, gx, gy, gz, inv, flat, ny, nz, ci, lo, hi, sc, k, row):
-    """Right-hand side of lane w at yt[:, w] into k[row, :, w], as ``kernel._f`` computes it
-    with the cell it has cached: kept while the point is inside it (faces included), else
-    located again.  False where ``kernel._norm3`` would rescale (tiny or huge speeds)."""
-    px, py, pz = yt[0, w], yt[1, w], yt[2, w]
-    if not (ci[0, w] >= 0 and lo[0, w] <= px <= hi[0, w] and lo[1, w] <= py <= hi[1, w]
-            and lo[2, w] <= pz <= hi[2, w]):
-        ci[0, w] = _axis_cell(gx, inv[0], px)
-        ci[1, w] = _axis_cell(gy, inv[1], py)
-        ci[2, w] = _axis_cell(gz, inv[2], pz)
-        lo[0, w], lo[1, w], lo[2, w] = gx[ci[0, w]], gy[ci[1, w]], gz[ci[2, w]]
-        hi[0, w], hi[1, w], hi[2, w] = gx[ci[0, w] + 1], gy[ci[1, w] + 1], gz[ci[2, w] + 1]
-        for a in range(3):
-            sc[a, w] = 1.0 / (hi[a, w] - lo[a, w])  # kernel._relocate's 1 / width
-    i, j, kk = ci[0, w], ci[1, w], ci[2, w]
-    tx = (px - lo[0, w]) * sc[0, w]
-    ty = (py - lo[1, w]) * sc[1, w]
-    tz = (pz - lo[2, w]) * sc[2, w]
+def _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param):
+    """Stage st of every lane of group g into k[g, st]: ``kernel._f`` (the cell located, its
+    polynomial evaluated), as one branch-free loop over the lanes that LLVM makes vector code.
+    ok[g, w] turns False where ``kernel._norm3`` would rescale (tiny or huge speeds)."""
     dj = nz * 3
     di = ny * dj
-    b = ((i * ny + j) * nz + kk) * 3
-    u = _component(flat, b, di, dj, 0, tx, ty, tz)
-    v = _component(flat, b, di, dj, 1, tx, ty, tz)
-    s = _component(flat, b, di, dj, 2, tx, ty, tz)
-    sp = math.sqrt(u * u + v * v + s * s)
-    if param == 0:
-        k[row, 0, w], k[row, 1, w], k[row, 2, w], k[row, 3, w] = u, v, s, sp
-    else:
-        r = 1.0 / sp
-        k[row, 0, w], k[row, 1, w], k[row, 2, w], k[row, 3, w] = u * r, v * r, s * r, r
-    return sp > 1e-150 and sp < 1e150
+    for w in range(W):
+        px, py, pz = yt[g, 0, w], yt[g, 1, w], yt[g, 2, w]
+        i = _axis_cell(gx, inv[0], px)
+        j = _axis_cell(gy, inv[1], py)
+        kk = _axis_cell(gz, inv[2], pz)
+        lx, ly, lz = gx[i], gy[j], gz[kk]
+        sx, sy, sz = rx[i], ry[j], rz[kk]  # kernel._relocate's 1 / width, tabulated
+        tx = (px - lx) * sx
+        ty = (py - ly) * sy
+        tz = (pz - lz) * sz
+        b = ((i * ny + j) * nz + kk) * 3
+        u = _component(flat, b, di, dj, 0, tx, ty, tz)
+        v = _component(flat, b, di, dj, 1, tx, ty, tz)
+        s = _component(flat, b, di, dj, 2, tx, ty, tz)
+        sp = math.sqrt(u * u + v * v + s * s)
+        r = 1.0 / sp if param != 0 else 1.0  # u * 1.0 is u: time parameter, velocity as is
+        k[g, st, 0, w] = u * r
+        k[g, st, 1, w] = v * r
+        k[g, st, 2, w] = s * r
+        k[g, st, 3, w] = r if param != 0 else sp
+        ok[g, w] &= (sp > 1e-150) & (sp < 1e150)
 
 
 @njit(cache=True, inline="always")
-def _stages(first, last, live, y, h, k, ma, yt, ok, param, vec, gx, gy, gz, period, inv, flat,
-            ci, lo, hi, sc):
-    """Stages first..last of every live lane: the points (summed in the scalar kernel's order),
-    a prefetch of all their cells, then the evaluations."""
-    ny, nz = vec.shape[1], vec.shape[2]
-    for st in range(first, last + 1):
+def _sums(g, n, coef, row, y, h, k, out, comps):
+    """out[g, a, w] = y[g, a, w] + h[g, w] * Σ_m<n coef[row, m] k[g, m, a, w] for a < comps,
+    summed in the scalar kernel's order; the lane loops innermost, so they are vector code."""
+    for a in range(comps):
         for w in range(W):
-            if live[w]:
-                for a in range(3):
-                    acc = 0.0
-                    for m in range(st):
-                        acc += ma[st, m] * k[m, a, w]
-                    yt[a, w] = y[a, w] + h[w] * acc
-                _prefetch_cell(vec, gx, gy, gz, period, inv, yt[0, w], yt[1, w], yt[2, w], -1)
+            out[g, a, w] = 0.0
+        for m in range(n):
+            c = coef[row, m]
+            for w in range(W):
+                out[g, a, w] += c * k[g, m, a, w]
         for w in range(W):
-            if live[w]:
-                ok[w] &= _eval(yt, w, param, gx, gy, gz, inv, flat, ny, nz, ci, lo, hi, sc, k,
-                               st)
+            out[g, a, w] = y[g, a, w] + h[g, w] * out[g, a, w]
 
 
-@njit(cache=True, parallel=True)
-def lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf, si,
+@njit(cache=True, inline="always")
+def _node(c, inv, x):
+    """Cell index of x by one multiply, clamped (only to choose what to prefetch)."""
+    r = (x - c[0]) * inv
+    return min(max(int(r), 0), c.size - 2) if abs(r) < 1e18 else 0
+
+
+@njit(cache=True, inline="always")
+def _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz):
+    """Ask the cache for every live lane's cell before any lane is evaluated (the corners'
+    first and last components: two cache lines per corner pair)."""
+    dj = nz * 3
+    di = ny * dj
+    for w in range(W):
+        if live[g, w] != 0:
+            b = ((_node(gx, inv[0], yt[g, 0, w]) * ny + _node(gy, inv[1], yt[g, 1, w])) * nz
+                 + _node(gz, inv[2], yt[g, 2, w])) * 3
+            _prefetch(flat, b)
+            _prefetch(flat, b + 5)
+            _prefetch(flat, b + di)
+            _prefetch(flat, b + di + 5)
+            _prefetch(flat, b + dj)
+            _prefetch(flat, b + dj + 5)
+            _prefetch(flat, b + di + dj)
+            _prefetch(flat, b + di + dj + 5)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf, si,
              out_p, out_par, out_n):
     """Advance the started lines ``active`` in groups of W as far as the lock-step goes; their
-    state goes back into ``sf``/``si`` for ``kernel._advance_line`` to continue."""
+    state goes back into ``sf``/``si`` for ``kernel._advance_line`` to continue.
+
+    Every array the parallel loop touches is made before it and indexed by the group, none a
+    view of another, and ``flat`` is the only view of the field: numba then marks them as not
+    aliasing (it does so only when its alias analysis of the loop finds nothing), which LLVM's
+    vectorizer needs for the gathers of ``_evaluate``."""
     B = out_p.shape[1]
     n_err, fs = mi[1], mi[2]
     param, max_steps = io[P_PARAM], io[P_MAXSTEPS]
@@ -177,92 +203,94 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf,
     lim_dep = fo[O_MAXLEN] if param == 0 else fo[O_MAXTIME]
     dlo = np.array([gx[0], gy[0], gz[0]])
     dhi = np.array([gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]])
-    flat = vec.reshape(-1)  # C-contiguous (Field makes it so)
-    for g in prange((active.size + W - 1) // W):
-        y, yt, y1, k = np.empty((4, W)), np.empty((3, W)), np.empty((4, W)), np.empty((SMAX, 4, W))
-        tau, h, d = np.zeros(W), np.zeros(W), np.ones(W)
-        lo, hi, sc = np.zeros((3, W)), np.zeros((3, W)), np.zeros((3, W))  # cached cells
-        ci = np.full((3, W), -1, np.int64)
-        n_acc, n_rej = np.zeros(W, np.int64), np.zeros(W, np.int64)
-        live, moved, ok = np.zeros(W, np.bool_), np.zeros(W, np.bool_), np.ones(W, np.bool_)
+    mb2 = np.empty((1, mb.size))  # a copy, not a view
+    mb2[0, :] = mb
+    G = (active.size + W - 1) // W
+    # every lane's state; a stopped lane keeps being computed (its values unused), so zeros
+    y, yt, y1 = np.zeros((G, 4, W)), np.zeros((G, 3, W)), np.zeros((G, 4, W))
+    k = np.zeros((G, SMAX, 4, W))
+    tau, h, d = np.zeros((G, W)), np.zeros((G, W)), np.ones((G, W))
+    # 1 / width of every cell, as kernel._relocate divides (a gather instead of a division)
+    rx, ry, rz = 1.0 / (gx[1:] - gx[:-1]), 1.0 / (gy[1:] - gy[:-1]), 1.0 / (gz[1:] - gz[:-1])
+    n_acc, n_rej = np.zeros((G, W), np.int64), np.zeros((G, W), np.int64)
+    # int8 flags and int variables, not bools: numba's alias analysis counts a bool variable as
+    # a possible alias, and then marks no array of the loop as not aliasing
+    live, moved, ok = np.zeros((G, W), np.int8), np.zeros((G, W), np.int8), np.ones((G, W), np.int8)
+    for g in prange(G):
         nl = min(W, active.size - g * W)
         for w in range(nl):
             l = active[g * W + w]
             if si[l, I_STATUS] == RUNNING:
-                live[w] = True
+                live[g, w] = 1
                 for a in range(3):
-                    y[a, w] = sf[l, S_Y + a]
-                y[3, w] = sf[l, S_DEP]
-                tau[w], h[w], d[w] = sf[l, S_TAU], sf[l, S_H], dirs[l]
+                    y[g, a, w] = sf[l, S_Y + a]
+                y[g, 3, w] = sf[l, S_DEP]
+                tau[g, w], h[g, w], d[g, w] = sf[l, S_TAU], sf[l, S_H], dirs[l]
                 for a in range(4):
-                    k[0, a, w] = sf[l, S_K0 + a]
-                n_acc[w], n_rej[w] = si[l, I_NACC], si[l, I_NREJ]
+                    k[g, 0, a, w] = sf[l, S_K0 + a]
+                n_acc[g, w], n_rej[g, w] = si[l, I_NACC], si[l, I_NREJ]
         while True:
             # the checks at the top of the scalar kernel's loop, and the final clipped step: a
             # lane meeting any of them stops
             n_live = 0
             for w in range(W):
-                if not live[w]:
+                if live[g, w] == 0:
                     continue
-                speed = k[0, 3, w] if param == 0 else 1.0 / k[0, 3, w]
-                stop = (out_n[g * W + w] >= B or not (speed >= stag) or speed == 0.0
-                        or n_acc[w] + n_rej[w] >= max_steps
-                        or abs(h[w]) >= lim_ind - abs(tau[w]))
+                speed = k[g, 0, 3, w] if param == 0 else 1.0 / k[g, 0, 3, w]
+                stop = (int(out_n[g * W + w] >= B) | int(not (speed >= stag)) | int(speed == 0.0)
+                        | int(n_acc[g, w] + n_rej[g, w] >= max_steps)
+                        | int(abs(h[g, w]) >= lim_ind - abs(tau[g, w])))
                 for a in range(3):
-                    mv = d[w] * k[0, a, w]
-                    if (y[a, w] <= dlo[a] and mv < 0.0) or (y[a, w] >= dhi[a] and mv > 0.0):
-                        stop = True
-                live[w] = not stop
-                n_live += not stop
-                ok[w] = True
+                    mv = d[g, w] * k[g, 0, a, w]
+                    stop |= (int((y[g, a, w] <= dlo[a]) & (mv < 0.0))
+                             | int((y[g, a, w] >= dhi[a]) & (mv > 0.0)))
+                live[g, w] = 1 - stop
+                n_live += 1 - stop
+                ok[g, w] = 1
             if n_live == 0:
                 break
-            _stages(1, n_err - 1, live, y, h, k, ma, yt, ok, param, vec, gx, gy, gz, period,
-                    inv, flat, ci, lo, hi, sc)
-            for w in range(W):
-                if live[w]:
-                    for a in range(4):
-                        acc = 0.0
-                        for m in range(n_err):
-                            acc += mb[m] * k[m, a, w]
-                        y1[a, w] = y[a, w] + h[w] * acc
-            _stages(n_err, fs, live, y, h, k, ma, yt, ok, param, vec, gx, gy, gz, period, inv,
-                    flat, ci, lo, hi, sc)
+            # the stage points, a prefetch of their cells, then the evaluations
+            for st in range(1, fs + 1):
+                if st == n_err:
+                    _sums(g, n_err, mb2, 0, y, h, k, y1, 4)
+                _sums(g, st, ma, st, y, h, k, yt, 3)
+                _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz)
+                _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param)
             # commit where the scalar kernel would take the step with no event
             for w in range(W):
-                if not live[w]:
+                if live[g, w] == 0:
                     continue
-                good = ok[w] and abs(y1[3, w]) < lim_dep and math.isfinite(
-                    k[fs, 0, w] + k[fs, 1, w] + k[fs, 2, w] + k[fs, 3, w])
+                good = int(ok[g, w]) & int(abs(y1[g, 3, w]) < lim_dep) & int(math.isfinite(
+                    k[g, fs, 0, w] + k[g, fs, 1, w] + k[g, fs, 2, w] + k[g, fs, 3, w]))
                 for a in range(4):
-                    good = good and math.isfinite(y1[a, w])
+                    good &= int(math.isfinite(y1[g, a, w]))
                 for a in range(3):
-                    good = good and dlo[a] <= y1[a, w] <= dhi[a]
-                if not good:
-                    live[w] = False
+                    good &= int(dlo[a] <= y1[g, a, w]) & int(y1[g, a, w] <= dhi[a])
+                if good == 0:
+                    live[g, w] = 0
                     continue
-                hs, tau0 = h[w], tau[w]
+                hs, tau0 = h[g, w], tau[g, w]
                 for a in range(4):
-                    y[a, w] = y1[a, w]
-                    k[0, a, w] = k[fs, a, w]
-                tau[w] = tau0 + hs
-                n_acc[w] += 1
-                h[w] = d[w] * min(abs(hs), hmax)
-                moved[w] = True
-                if hs != 0.0 or tau0 != tau[w]:
-                    t_out = tau[w] if param == 0 else y[3, w]
-                    s_out = y[3, w] if param == 0 else tau[w]
-                    _put(out_p, out_par, out_n, g * W + w, y[0, w], y[1, w], y[2, w], t_out,
-                         s_out)
+                    y[g, a, w] = y1[g, a, w]
+                    k[g, 0, a, w] = k[g, fs, a, w]
+                tau[g, w] = tau0 + hs
+                n_acc[g, w] += 1
+                h[g, w] = d[g, w] * min(abs(hs), hmax)
+                moved[g, w] = 1
+                if (hs != 0.0) | (tau0 != tau[g, w]):
+                    t_out = tau[g, w] if param == 0 else y[g, 3, w]
+                    s_out = y[g, 3, w] if param == 0 else tau[g, w]
+                    _put(out_p, out_par, out_n, g * W + w, y[g, 0, w], y[g, 1, w], y[g, 2, w],
+                         t_out, s_out)
         for w in range(nl):  # hand the lines back
             l = active[g * W + w]
-            if moved[w]:
+            if moved[g, w] != 0:
                 for a in range(3):
-                    sf[l, S_Y + a] = y[a, w]
-                sf[l, S_DEP], sf[l, S_TAU], sf[l, S_H] = y[3, w], tau[w], h[w]
+                    sf[l, S_Y + a] = y[g, a, w]
+                sf[l, S_DEP], sf[l, S_TAU], sf[l, S_H] = y[g, 3, w], tau[g, w], h[g, w]
                 for a in range(4):
-                    sf[l, S_K0 + a] = k[0, a, w]
-                si[l, I_NACC], si[l, I_NREJ], si[l, I_LASTREJ] = n_acc[w], n_rej[w], 0
+                    sf[l, S_K0 + a] = k[g, 0, a, w]
+                si[l, I_NACC], si[l, I_NREJ], si[l, I_LASTREJ] = n_acc[g, w], n_rej[g, w], 0
 
 
 @njit(cache=True)
@@ -273,8 +301,8 @@ def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
         io[P_PASS] = PASS_SETUP
         advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
                            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
-        lockstep(active, dirs, gx, gy, gz, period, inv, vec, ma, mb, mi, fo, io, sf, si,
-                 out_p, out_par, out_n)
+        lockstep(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
+                 ma, mb, mi, fo, io, sf, si, out_p, out_par, out_n)
         io[P_PASS] = PASS_FINISH
     advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
                        mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
