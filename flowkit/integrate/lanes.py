@@ -91,18 +91,22 @@ def _axis_cell(c, inv, x):
     return i - dn + up
 
 
+U3 = np.uint64(3)  # unsigned indices: numba adds no negative-index wraparound to the gathers
+
+
 @njit(cache=True, inline="always")
 def _component(flat, b, di, dj, c, tx, ty, tz):
     """Component c of the trilinear polynomial of the cell whose first corner starts at
-    flat[b]: ``kernel._gather``'s coefficients in ``kernel._fc``'s Horner form."""
+    flat[b] (b, di, dj, c unsigned): ``kernel._gather``'s coefficients in ``kernel._fc``'s
+    Horner form."""
     v000 = flat[b + c]
     v100 = flat[b + di + c]
     v010 = flat[b + dj + c]
     v110 = flat[b + di + dj + c]
-    v001 = flat[b + 3 + c]
-    v101 = flat[b + di + 3 + c]
-    v011 = flat[b + dj + 3 + c]
-    v111 = flat[b + di + dj + 3 + c]
+    v001 = flat[b + U3 + c]
+    v101 = flat[b + di + U3 + c]
+    v011 = flat[b + dj + U3 + c]
+    v111 = flat[b + di + dj + U3 + c]
     a1 = v100 - v000
     a2 = v010 - v000
     a3 = v001 - v000
@@ -118,8 +122,8 @@ def _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param
     """Stage st of every lane of group g into k[g, st]: ``kernel._f`` (the cell located, its
     polynomial evaluated), as one branch-free loop over the lanes that LLVM makes vector code.
     ok[g, w] turns False where ``kernel._norm3`` would rescale (tiny or huge speeds)."""
-    dj = nz * 3
-    di = ny * dj
+    dj = np.uint64(nz * 3)
+    di = np.uint64(ny * nz * 3)
     for w in range(W):
         px, py, pz = yt[g, 0, w], yt[g, 1, w], yt[g, 2, w]
         i = _axis_cell(gx, inv[0], px)
@@ -130,10 +134,10 @@ def _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param
         tx = (px - lx) * sx
         ty = (py - ly) * sy
         tz = (pz - lz) * sz
-        b = ((i * ny + j) * nz + kk) * 3
-        u = _component(flat, b, di, dj, 0, tx, ty, tz)
-        v = _component(flat, b, di, dj, 1, tx, ty, tz)
-        s = _component(flat, b, di, dj, 2, tx, ty, tz)
+        b = np.uint64(((i * ny + j) * nz + kk) * 3)
+        u = _component(flat, b, di, dj, np.uint64(0), tx, ty, tz)
+        v = _component(flat, b, di, dj, np.uint64(1), tx, ty, tz)
+        s = _component(flat, b, di, dj, np.uint64(2), tx, ty, tz)
         sp = math.sqrt(u * u + v * v + s * s)
         r = 1.0 / sp if param != 0 else 1.0  # u * 1.0 is u: time parameter, velocity as is
         k[g, st, 0, w] = u * r
@@ -161,20 +165,24 @@ def _sums(g, n, coef, row, y, h, k, out, comps):
 @njit(cache=True, inline="always")
 def _node(c, inv, x):
     """Cell index of x by one multiply, clamped (only to choose what to prefetch)."""
-    r = (x - c[0]) * inv
-    return min(max(int(r), 0), c.size - 2) if abs(r) < 1e18 else 0
+    # (a NaN point gives some index: a prefetch of any address is harmless)
+    r = min(max((x - c[0]) * inv, 0.0), c.size - 2.0)
+    return int(r)
 
 
 @njit(cache=True, inline="always")
-def _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz):
+def _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb):
     """Ask the cache for every live lane's cell before any lane is evaluated (the corners'
-    first and last components: two cache lines per corner pair)."""
+    first and last components: two cache lines per corner pair).  The cells are found in a
+    loop of vector code; only the prefetches themselves are one lane at a time."""
+    for w in range(W):
+        pb[g, w] = ((_node(gx, inv[0], yt[g, 0, w]) * ny + _node(gy, inv[1], yt[g, 1, w])) * nz
+                    + _node(gz, inv[2], yt[g, 2, w])) * 3
     dj = nz * 3
     di = ny * dj
     for w in range(W):
         if live[g, w] != 0:
-            b = ((_node(gx, inv[0], yt[g, 0, w]) * ny + _node(gy, inv[1], yt[g, 1, w])) * nz
-                 + _node(gz, inv[2], yt[g, 2, w])) * 3
+            b = pb[g, w]
             _prefetch(flat, b)
             _prefetch(flat, b + 5)
             _prefetch(flat, b + di)
@@ -216,6 +224,19 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
     # int8 flags and int variables, not bools: numba's alias analysis counts a bool variable as
     # a possible alias, and then marks no array of the loop as not aliasing
     live, moved, ok = np.zeros((G, W), np.int8), np.zeros((G, W), np.int8), np.ones((G, W), np.int8)
+    emit = np.zeros((G, W), np.int8)
+    pb = np.zeros((G, W), np.int64)  # prefetched cells
+    n_act = active.size
+    # prefetch a stage's cells only where its c differs from the stage before (the scalar
+    # kernel's rule): rk4's second stage and f(y1) sit at the c of the stage before them
+    pf = np.zeros(SMAX + 1, np.int8)
+    c_prev = 0.0
+    for st in range(1, fs + 1):
+        c = 0.0
+        for m in range(st):
+            c += ma[st, m]
+        pf[st] = c != c_prev
+        c_prev = c
     for g in prange(G):
         nl = min(W, active.size - g * W)
         for w in range(nl):
@@ -233,19 +254,19 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
             # the checks at the top of the scalar kernel's loop, and the final clipped step: a
             # lane meeting any of them stops
             n_live = 0
-            for w in range(W):
-                if live[g, w] == 0:
-                    continue
+            for w in range(W):  # branch-free: vector code
+                slot = min(g * W + w, n_act - 1)  # (lanes past the last line read a real slot)
                 speed = k[g, 0, 3, w] if param == 0 else 1.0 / k[g, 0, 3, w]
-                stop = (int(out_n[g * W + w] >= B) | int(not (speed >= stag)) | int(speed == 0.0)
+                stop = (int(out_n[slot] >= B) | int(not (speed >= stag)) | int(speed == 0.0)
                         | int(n_acc[g, w] + n_rej[g, w] >= max_steps)
                         | int(abs(h[g, w]) >= lim_ind - abs(tau[g, w])))
                 for a in range(3):
                     mv = d[g, w] * k[g, 0, a, w]
                     stop |= (int((y[g, a, w] <= dlo[a]) & (mv < 0.0))
                              | int((y[g, a, w] >= dhi[a]) & (mv > 0.0)))
-                live[g, w] = 1 - stop
-                n_live += 1 - stop
+                lv = live[g, w] & (1 - stop)
+                live[g, w] = lv
+                n_live += lv
                 ok[g, w] = 1
             if n_live == 0:
                 break
@@ -254,30 +275,32 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
                 if st == n_err:
                     _sums(g, n_err, mb2, 0, y, h, k, y1, 4)
                 _sums(g, st, ma, st, y, h, k, yt, 3)
-                _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz)
+                if pf[st] != 0:  # (a stage at the same c as the last meets the same cells)
+                    _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb)
                 _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param)
-            # commit where the scalar kernel would take the step with no event
+            # commit where the scalar kernel would take the step with no event (branch-free:
+            # vector code), then emit the committed vertices
             for w in range(W):
-                if live[g, w] == 0:
-                    continue
-                good = int(ok[g, w]) & int(abs(y1[g, 3, w]) < lim_dep) & int(math.isfinite(
-                    k[g, fs, 0, w] + k[g, fs, 1, w] + k[g, fs, 2, w] + k[g, fs, 3, w]))
+                good = (live[g, w] & ok[g, w] & int(abs(y1[g, 3, w]) < lim_dep)
+                        & int(math.isfinite(k[g, fs, 0, w] + k[g, fs, 1, w] + k[g, fs, 2, w]
+                                            + k[g, fs, 3, w])))
                 for a in range(4):
                     good &= int(math.isfinite(y1[g, a, w]))
                 for a in range(3):
                     good &= int(dlo[a] <= y1[g, a, w]) & int(y1[g, a, w] <= dhi[a])
-                if good == 0:
-                    live[g, w] = 0
-                    continue
                 hs, tau0 = h[g, w], tau[g, w]
+                tau1 = tau0 + hs
                 for a in range(4):
-                    y[g, a, w] = y1[g, a, w]
-                    k[g, 0, a, w] = k[g, fs, a, w]
-                tau[g, w] = tau0 + hs
-                n_acc[g, w] += 1
-                h[g, w] = d[g, w] * min(abs(hs), hmax)
-                moved[g, w] = 1
-                if (hs != 0.0) | (tau0 != tau[g, w]):
+                    y[g, a, w] = y1[g, a, w] if good != 0 else y[g, a, w]
+                    k[g, 0, a, w] = k[g, fs, a, w] if good != 0 else k[g, 0, a, w]
+                tau[g, w] = tau1 if good != 0 else tau0
+                h[g, w] = d[g, w] * min(abs(hs), hmax) if good != 0 else hs
+                n_acc[g, w] += good
+                moved[g, w] |= good
+                live[g, w] = good
+                emit[g, w] = good & (int(hs != 0.0) | int(tau0 != tau1))
+            for w in range(W):
+                if emit[g, w] != 0:
                     t_out = tau[g, w] if param == 0 else y[g, 3, w]
                     s_out = y[g, 3, w] if param == 0 else tau[g, w]
                     _put(out_p, out_par, out_n, g * W + w, y[g, 0, w], y[g, 1, w], y[g, 2, w],
