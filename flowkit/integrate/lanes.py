@@ -15,11 +15,12 @@ polynomial coefficients, stage sums and step update), so the lines are bit-ident
 ``kernel.advance``'s (tests/test_lanes.py).  The cell of a stage point is located afresh every
 time: the scalar kernel keeps its cached cell only while a point is strictly inside it, where
 locating it again gives the same cell, so the choice depends on the point alone.  A lane commits
-only a step that the scalar kernel would commit with no special handling: its stages finite, its
-end inside the domain and short of the length and time limits, room in the output buffer.  At
-anything else — a boundary, NaN data, stagnation, the final clipped step, a full buffer,
-``max_steps`` — the lane stops before that step and ``kernel._advance_line`` finishes the line
-from the saved state.  Adaptive methods, cell-aware stepping, resampled output, periodic and
+only a step that the scalar kernel would commit with no event: its stages finite, its end inside
+the domain and short of the dependent parameter's limit, room in the output buffer.  The step
+that reaches the independent parameter's limit (``max_length`` in arc length, ``max_time`` in
+time) is clipped there, as the scalar kernel clips it, and ends the line.  At anything else — a
+boundary, NaN data, stagnation, a full buffer, ``max_steps`` — the lane stops before that step
+and ``kernel._advance_line`` finishes the line from the saved state.  Adaptive methods, cell-aware stepping, resampled output, periodic and
 non-uniform axes go to the scalar kernel whole (``eligible``).
 """
 from __future__ import annotations
@@ -30,10 +31,12 @@ import numpy as np
 from numba import njit, prange
 
 from .kernel import (
+    DONE,
     EMIT_STEPS,
     I_LASTREJ,
     I_NACC,
     I_NREJ,
+    I_REASON,
     I_STATUS,
     O_HMAX,
     O_MAXLEN,
@@ -48,6 +51,8 @@ from .kernel import (
     PASS_FINISH,
     PASS_FULL,
     PASS_SETUP,
+    R_MAXLEN,
+    R_MAXTIME,
     RUNNING,
     S_DEP,
     S_H,
@@ -224,7 +229,9 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
     # int8 flags and int variables, not bools: numba's alias analysis counts a bool variable as
     # a possible alias, and then marks no array of the loop as not aliasing
     live, moved, ok = np.zeros((G, W), np.int8), np.zeros((G, W), np.int8), np.ones((G, W), np.int8)
-    emit = np.zeros((G, W), np.int8)
+    emit, hit, done = np.zeros((G, W), np.int8), np.zeros((G, W), np.int8), np.zeros((G, W), np.int8)
+    hs = np.zeros((G, W))  # the step taken: h, or clipped at the parameter's limit
+    r_ind = R_MAXTIME if param == 0 else R_MAXLEN
     pb = np.zeros((G, W), np.int64)  # prefetched cells
     n_act = active.size
     # prefetch a stage's cells only where its c differs from the stage before (the scalar
@@ -251,19 +258,22 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
                     k[g, 0, a, w] = sf[l, S_K0 + a]
                 n_acc[g, w], n_rej[g, w] = si[l, I_NACC], si[l, I_NREJ]
         while True:
-            # the checks at the top of the scalar kernel's loop, and the final clipped step: a
-            # lane meeting any of them stops
+            # the checks at the top of the scalar kernel's loop: a lane meeting any of them stops
             n_live = 0
             for w in range(W):  # branch-free: vector code
                 slot = min(g * W + w, n_act - 1)  # (lanes past the last line read a real slot)
                 speed = k[g, 0, 3, w] if param == 0 else 1.0 / k[g, 0, 3, w]
                 stop = (int(out_n[slot] >= B) | int(not (speed >= stag)) | int(speed == 0.0)
-                        | int(n_acc[g, w] + n_rej[g, w] >= max_steps)
-                        | int(abs(h[g, w]) >= lim_ind - abs(tau[g, w])))
+                        | int(n_acc[g, w] + n_rej[g, w] >= max_steps))
                 for a in range(3):
                     mv = d[g, w] * k[g, 0, a, w]
                     stop |= (int((y[g, a, w] <= dlo[a]) & (mv < 0.0))
                              | int((y[g, a, w] >= dhi[a]) & (mv > 0.0)))
+                # the step, clipped where it reaches the parameter's limit (the line's last)
+                rem = lim_ind - abs(tau[g, w])
+                last = int(abs(h[g, w]) >= rem)
+                hit[g, w] = last
+                hs[g, w] = d[g, w] * rem if last != 0 else h[g, w]
                 lv = live[g, w] & (1 - stop)
                 live[g, w] = lv
                 n_live += lv
@@ -273,8 +283,8 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
             # the stage points, a prefetch of their cells, then the evaluations
             for st in range(1, fs + 1):
                 if st == n_err:
-                    _sums(g, n_err, mb2, 0, y, h, k, y1, 4)
-                _sums(g, st, ma, st, y, h, k, yt, 3)
+                    _sums(g, n_err, mb2, 0, y, hs, k, y1, 4)
+                _sums(g, st, ma, st, y, hs, k, yt, 3)
                 if pf[st] != 0:  # (a stage at the same c as the last meets the same cells)
                     _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb)
                 _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param)
@@ -288,17 +298,18 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
                     good &= int(math.isfinite(y1[g, a, w]))
                 for a in range(3):
                     good &= int(dlo[a] <= y1[g, a, w]) & int(y1[g, a, w] <= dhi[a])
-                hs, tau0 = h[g, w], tau[g, w]
-                tau1 = tau0 + hs
+                hsw, tau0, last = hs[g, w], tau[g, w], hit[g, w]
+                tau1 = d[g, w] * lim_ind if last != 0 else tau0 + hsw
                 for a in range(4):
                     y[g, a, w] = y1[g, a, w] if good != 0 else y[g, a, w]
                     k[g, 0, a, w] = k[g, fs, a, w] if good != 0 else k[g, 0, a, w]
                 tau[g, w] = tau1 if good != 0 else tau0
-                h[g, w] = d[g, w] * min(abs(hs), hmax) if good != 0 else hs
+                h[g, w] = d[g, w] * min(abs(h[g, w]), hmax) if good != 0 else h[g, w]
                 n_acc[g, w] += good
                 moved[g, w] |= good
-                live[g, w] = good
-                emit[g, w] = good & (int(hs != 0.0) | int(tau0 != tau1))
+                done[g, w] |= good & last  # the limit met: reason r_ind, as the scalar kernel
+                live[g, w] = good & (1 - last)
+                emit[g, w] = good & (int(hsw != 0.0) | int(tau0 != tau1))
             for w in range(W):
                 if emit[g, w] != 0:
                     t_out = tau[g, w] if param == 0 else y[g, 3, w]
@@ -314,6 +325,8 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
                 for a in range(4):
                     sf[l, S_K0 + a] = k[g, 0, a, w]
                 si[l, I_NACC], si[l, I_NREJ], si[l, I_LASTREJ] = n_acc[g, w], n_rej[g, w], 0
+            if done[g, w] != 0:
+                si[l, I_STATUS], si[l, I_REASON] = DONE, r_ind
 
 
 @njit(cache=True)
