@@ -5,7 +5,9 @@ the same effect on ``sf``, ``si``, ``out_p``, ``out_par`` and ``out_n``: the hos
 trace.py (vertex budget per line per pass, relaunch of unfinished lines, never truncating) is
 shared by both backends.  The active lines are processed in chunks; each chunk's state is packed,
 uploaded on one queue, advanced on a second and read back on a third, so that on a device with
-copy engines the transfers of one chunk overlap the kernel of the next.  The field and the grid
+copy engines the transfers of one chunk overlap the kernel of the next.  The vertices are read
+back once the counts have arrived, on a fourth queue, and only the first max(out_n) slots of each
+line (a rectangle of the (lines, budget) buffers), not the whole budget.  The field and the grid
 are uploaded once per field.
 
 Per-vertex attributes: ``trace`` asks the backend to ``bind_attributes(field, names)`` and gets a
@@ -70,8 +72,9 @@ class OpenCLAdvance:
         self.local = int(local_size)
         self.ctx = _context(self.device)
         props = cl.command_queue_properties.PROFILING_ENABLE if profile else 0
-        self.q_up, self.q_run, self.q_down = (cl.CommandQueue(self.ctx, self.device, properties=props)
-                                              for _ in range(3))
+        # uploads, runs, downloads of the counts and state, downloads of the vertices
+        self.q_up, self.q_run, self.q_down, self.q_back = (
+            cl.CommandQueue(self.ctx, self.device, properties=props) for _ in range(4))
         self.timeline = [] if profile else None
         self.kernel_attributes = bool(kernel_attributes)
         self._field = None  # (key arrays, device buffers)
@@ -217,27 +220,48 @@ class OpenCLAdvance:
             glob = -(-m // local) * local
             ev_run = knl(self.q_run, (glob,), (local,), *args, wait_for=ev_up)
             self.launches += 1
+            # the counts and the state now; the vertices once the counts say how many
             ev_down = [cl.enqueue_copy(self.q_down, h, d, is_blocking=False, wait_for=[ev_run])
-                       for h, d in zip(host_out, dev_out + dev_in[4:])]
-            pending.append((lo, hi, idx, host_in, host_out, ev_down))
+                       for h, d in zip(host_out[2:3] + host_out[-2:], dev_out[2:3] + dev_in[4:])]
+            pending.append((lo, hi, idx, host_in, host_out, dev_out, ev_down, self.launches))
             if self.timeline is not None:
                 self.timeline += ([("up", self.launches, e) for e in ev_up] + [("run", self.launches, ev_run)]
                                   + [("down", self.launches, e) for e in ev_down])
             for q in (self.q_up, self.q_run, self.q_down):
                 q.flush()
-        for lo, hi, idx, _host_in, (op, opar, on, *attr, sfc, sic), ev_down in pending:
+        for lo, hi, idx, _host_in, host_out, dev_out, ev_down, launch in pending:
+            op, opar, on, *attr, sfc, sic = host_out
             cl.wait_for_events(ev_down)
+            # only the first max(out_n) slots of each line hold vertices: read those (a
+            # rectangle of the (lines, B) buffers), not the whole budget
+            w = int(on.max(initial=0))
+            if w:
+                ev_back = [self._read_prefix(h, d, w)
+                           for h, d in zip([op, opar, *attr], dev_out[:2] + dev_out[3:])]
+                if self.timeline is not None:
+                    self.timeline += [("down", launch, e) for e in ev_back]
+                cl.wait_for_events(ev_back)
             with np.errstate(invalid="ignore"):  # float32 slots past out_n hold garbage
-                out_p[lo:hi] = op
-                out_par[lo:hi, :, :2] = opar
+                out_p[lo:hi, :w] = op[:, :w]
+                out_par[lo:hi, :w, :2] = opar[:, :w]
                 col = 2
                 for a in attr:
                     c = 1 if a.ndim == 2 else a.shape[2]
-                    out_par[lo:hi, :, col:col + c] = a.reshape(a.shape[0], B, c)
+                    out_par[lo:hi, :w, col:col + c] = a.reshape(a.shape[0], B, c)[:, :w]
                     col += c
             out_n[lo:hi] = on
             sf[idx] = sfc
             si[idx] = sic
+
+    def _read_prefix(self, host, dev, w):
+        """Start reading the first w slots of every line of a (lines, B[, c]) output buffer
+        into the same places of ``host``; returns the event."""
+        row = host.strides[0]  # bytes per line, on the device as on the host
+        slot = host.itemsize * (1 if host.ndim == 2 else host.shape[2])
+        return self.cl.enqueue_copy(self.q_back, host, dev, buffer_origin=(0, 0, 0),
+                                    host_origin=(0, 0, 0), region=(w * slot, host.shape[0], 1),
+                                    buffer_pitches=(row,), host_pitches=(row,),
+                                    is_blocking=False)
 
 
 class _WithAttributes:
