@@ -104,12 +104,12 @@ def test_lockstep_takes_the_interior_steps():
           "parameter": "arc_length"}  # (in time, max_length is met on the dense output)
     args = _kernel_args(f, seeds, **kw)
     (active, _, dirs, _, _, gx, gy, gz, period, inv, vec,
-     _, ma, mb, _, _, _, mi, fo, io, sf, si, out_p, out_par, out_n) = args
-    assert lanes.eligible(period, inv, mi, io)
+     mc, ma, mb, _, _, _, mi, fo, io, sf, si, out_p, out_par, out_n) = args
+    assert lanes.eligible(period, inv, ma, mb, mi, io)
     io[K.P_PASS] = K.PASS_SETUP  # start the lines, as lanes.advance does
     K.advance(*args)
     lanes.lockstep(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
-                   ma, mb, mi, fo, io, sf, si, out_p, out_par, out_n)
+                   mc, ma, mi, fo, io, sf, si, out_p, out_par, out_n)
     steps = int(np.ceil(3.0 / 0.05))
     assert np.all(si[:, K.I_NACC] >= steps - 1)
     assert np.all(out_n == si[:, K.I_NACC] + 1)  # the seed and a vertex per step
@@ -162,12 +162,12 @@ def test_lockstep_is_vector_code():
     args = _kernel_args(f, np.full((3, 3), 0.3), method="rk4", step=0.05, max_length=0.5,
                         cell_aware=False, parameter="arc_length")
     (active, _, dirs, _, _, gx, gy, gz, _, inv, vec,
-     _, ma, mb, _, _, _, mi, fo, io, sf, si, out_p, out_par, out_n) = args
+     mc, ma, _, _, _, _, mi, fo, io, sf, si, out_p, out_par, out_n) = args
     io[K.P_PASS] = K.PASS_SETUP
     K.advance(*args)
     fresh = njit(parallel=True, error_model="numpy")(lanes.lockstep.py_func)
     fresh(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
-          ma, mb, mi, fo, io, sf, si, out_p, out_par, out_n)
+          mc, ma, mi, fo, io, sf, si, out_p, out_par, out_n)
     asm = fresh.overloads[fresh.signatures[0]].library.get_asm_str()
     assert re.search(r"vsqrtpd\s+%[yz]mm", asm)  # the evaluations, four or eight lanes at once
     assert re.search(r"vgather[dq]pd", asm)  # the cell corners
@@ -178,11 +178,15 @@ def test_eligible_only_where_it_applies():
     s = _seeds(5)
     base = {"method": "rk4", "step": 0.1, "max_length": 1.0, "cell_aware": False}
 
-    def ok(field=f, **kw):
+    def ok(field=f, last_row=None, **kw):
         args = _kernel_args(field, s, **(base | kw))
-        return lanes.eligible(args[8], args[9], args[17], args[19])  # period, inv, mi, io
+        period, inv, ma, mb, mi, io = (args[i] for i in (8, 9, 12, 13, 17, 19))
+        if last_row is not None:  # the f(y1) stage's weights, changed
+            ma[mi[2], :mi[1]] = last_row
+        return lanes.eligible(period, inv, ma, mb, mi, io)
 
     assert ok()
+    assert not ok(last_row=[1 / 6, 1 / 3, 1 / 3, 1 / 6 + 1e-16])  # its point is not y1 then
     assert ok(method="euler")
     assert not ok(method="dopri5", step=None)  # adaptive
     assert not ok(cell_aware=True)

@@ -6,7 +6,7 @@ on a large field are often cache misses.  Here a thread advances ``W`` lines sid
 stage of all of them at a time: the stage points of every lane, then a prefetch of every lane's
 cell (so the misses of different lines overlap instead of queueing), then the evaluations.  The
 stage sums and the evaluations are loops over the lanes with no branches, which LLVM turns into
-vector code (AVX-512 or AVX2 gathers of the cell corners, eight or four lanes per instruction);
+vector code (on AVX-512: gathers of the cell corners, eight lanes per instruction);
 the loop over the lanes is the innermost loop, and every lane is computed whether it is still
 running or not (a stopped lane's values are not used).
 
@@ -20,9 +20,11 @@ the domain and short of the dependent parameter's limit, room in the output buff
 that reaches the independent parameter's limit (``max_length`` in arc length, ``max_time`` in
 time) is clipped there, as the scalar kernel clips it, and ends the line.  At anything else — a
 boundary, NaN data, stagnation, a full buffer, ``max_steps`` — the lane stops before that step
-and ``kernel._advance_line`` finishes the line from the saved state.  Adaptive methods, cell-aware stepping, resampled output, periodic and
-non-uniform axes go to the scalar kernel whole (``eligible``).
+and ``kernel._advance_line`` finishes the line from the saved state.  Adaptive methods,
+cell-aware stepping, resampled output, periodic and non-uniform axes go to the scalar kernel
+whole (``eligible``).
 """
+
 from __future__ import annotations
 
 import math
@@ -69,12 +71,19 @@ SMAX = 5  # stages of the eligible methods (rk4 and euler with their f(y1) stage
 
 
 @njit(cache=True)
-def eligible(period, inv, mi, io):
-    """True where the lock-step path applies: a fixed-step method of at most SMAX stages, plain
-    stepping, a vertex per step, no stiffness test, every axis uniform and bounded."""
+def eligible(period, inv, ma, mb, mi, io):
+    """True where the lock-step path applies: a fixed-step method of at most SMAX stages whose
+    last stage evaluates f(y1) with y1's own weights (its stage point is y1), plain stepping, a
+    vertex per step, no stiffness test, every axis uniform and bounded."""
     if mi[3] != 0 or mi[0] > SMAX or io[P_AWARE] != 0 or io[P_EMIT] != EMIT_STEPS \
             or io[P_STIFF] >= 0:
         return False
+    n_err, fs = mi[1], mi[2]
+    if fs != n_err:
+        return False
+    for m in range(n_err):
+        if ma[fs, m] != mb[m]:
+            return False
     for a in range(3):
         if period[a] != 0.0 or not (inv[a] > 0.0):
             return False
@@ -169,8 +178,10 @@ def _sums(g, n, coef, row, y, h, k, out, comps):
 
 @njit(cache=True, inline="always")
 def _node(c, inv, x):
-    """Cell index of x by one multiply, clamped (only to choose what to prefetch)."""
-    # (a NaN point gives some index: a prefetch of any address is harmless)
+    """Cell index of x by one multiply, clamped (only to choose what to prefetch):
+    ``kernel._node_index`` without its branches (periodic wrap, non-uniform axis), which
+    ``eligible`` excludes here.  A NaN point gives some index: a prefetch of any address is
+    harmless."""
     r = min(max((x - c[0]) * inv, 0.0), c.size - 2.0)
     return int(r)
 
@@ -199,7 +210,7 @@ def _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf, si,
+def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mi, fo, io, sf, si,
              out_p, out_par, out_n):
     """Advance the started lines ``active`` in groups of W as far as the lock-step goes; their
     state goes back into ``sf``/``si`` for ``kernel._advance_line`` to continue.
@@ -209,15 +220,13 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
     aliasing (it does so only when its alias analysis of the loop finds nothing), which LLVM's
     vectorizer needs for the gathers of ``_evaluate``."""
     B = out_p.shape[1]
-    n_err, fs = mi[1], mi[2]
+    fs = mi[2]  # the f(y1) stage; y1 takes the stages before it (eligible: n_err == fs)
     param, max_steps = io[P_PARAM], io[P_MAXSTEPS]
     hmax, stag = fo[O_HMAX], fo[O_STAG]
     lim_ind = fo[O_MAXTIME] if param == 0 else fo[O_MAXLEN]
     lim_dep = fo[O_MAXLEN] if param == 0 else fo[O_MAXTIME]
     dlo = np.array([gx[0], gy[0], gz[0]])
     dhi = np.array([gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]])
-    mb2 = np.empty((1, mb.size))  # a copy, not a view
-    mb2[0, :] = mb
     G = (active.size + W - 1) // W
     # every lane's state; a stopped lane keeps being computed (its values unused), so zeros
     y, yt, y1 = np.zeros((G, 4, W)), np.zeros((G, 3, W)), np.zeros((G, 4, W))
@@ -234,18 +243,8 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
     r_ind = R_MAXTIME if param == 0 else R_MAXLEN
     pb = np.zeros((G, W), np.int64)  # prefetched cells
     n_act = active.size
-    # prefetch a stage's cells only where its c differs from the stage before (the scalar
-    # kernel's rule): rk4's second stage and f(y1) sit at the c of the stage before them
-    pf = np.zeros(SMAX + 1, np.int8)
-    c_prev = 0.0
-    for st in range(1, fs + 1):
-        c = 0.0
-        for m in range(st):
-            c += ma[st, m]
-        pf[st] = c != c_prev
-        c_prev = c
     for g in prange(G):
-        nl = min(W, active.size - g * W)
+        nl = min(W, n_act - g * W)
         for w in range(nl):
             l = active[g * W + w]
             if si[l, I_STATUS] == RUNNING:
@@ -280,12 +279,18 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
                 ok[g, w] = 1
             if n_live == 0:
                 break
-            # the stage points, a prefetch of their cells, then the evaluations
+            # the stage points, a prefetch of their cells, then the evaluations; the last stage
+            # (f(y1), eligible says) is at y1 itself
             for st in range(1, fs + 1):
-                if st == n_err:
-                    _sums(g, n_err, mb2, 0, y, hs, k, y1, 4)
-                _sums(g, st, ma, st, y, hs, k, yt, 3)
-                if pf[st] != 0:  # (a stage at the same c as the last meets the same cells)
+                if st < fs:
+                    _sums(g, st, ma, st, y, hs, k, yt, 3)
+                else:
+                    _sums(g, st, ma, st, y, hs, k, y1, 4)
+                    for a in range(3):
+                        for w in range(W):
+                            yt[g, a, w] = y1[g, a, w]
+                # the scalar kernel's rule: a stage at the c of the one before meets its cells
+                if mc[st] != mc[st - 1]:
                     _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb)
                 _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param)
             # commit where the scalar kernel would take the step with no event (branch-free:
@@ -333,12 +338,12 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, ma, mb, mi, fo, io, sf
 def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
             mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
     """``kernel.advance``, with lines in lock-step where ``eligible`` (same results)."""
-    if eligible(period, inv, mi, io):
+    if eligible(period, inv, ma, mb, mi, io):
         io[P_PASS] = PASS_SETUP
         advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
                            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
         lockstep(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
-                 ma, mb, mi, fo, io, sf, si, out_p, out_par, out_n)
+                 mc, ma, mi, fo, io, sf, si, out_p, out_par, out_n)
         io[P_PASS] = PASS_FINISH
     advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
                        mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
