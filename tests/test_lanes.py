@@ -165,7 +165,8 @@ def test_lockstep_is_vector_code():
      mc, ma, _, _, _, _, mi, fo, io, sf, si, out_p, out_par, out_n) = args
     io[K.P_PASS] = K.PASS_SETUP
     K.advance(*args)
-    fresh = njit(**lanes.lockstep.targetoptions)(lanes.lockstep.py_func)  # its options, no cache
+    opts = {k: v for k, v in lanes.lockstep.targetoptions.items() if k != "nopython"}
+    fresh = njit(**opts)(lanes.lockstep.py_func)  # its own options, not cached
     fresh(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
           mc, ma, mi, fo, io, sf, si, out_p, out_par, out_n)
     asm = fresh.overloads[fresh.signatures[0]].library.get_asm_str()
