@@ -262,6 +262,58 @@ def test_split_by_range_puts_every_segment_in_exactly_one_strip_piece():
             assert ids[q[3]] == (b + 1 if b not in (5, 10) else -1)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_select_and_split_match_a_point_by_point_reference_on_random_runs(seed):
+    # both run in passes (select in parallel over runs): the layout must be the one a plain
+    # loop over the points gives, with -1 between runs and a restart after each
+    from flowkit.render.simplify import RESTART, split_by_range
+
+    rng = np.random.default_rng(seed)
+    lens = rng.integers(1, 40, 30)
+    lines = Lines(rng.normal(size=(lens.sum(), 3)), np.r_[0, np.cumsum(lens)])
+    s, e = runs(lines)
+    imp = rng.uniform(0.0, 2.0, lines.n_points).astype(np.float32)
+    extra = rng.random(lines.n_points) < 0.1
+    px = (0.1, 1.0)
+    ids, idx = select(lines.points, imp, np.eye(4), px, 1.0, extra, s, e)
+    z = lines.points[:, 2]
+    want_ids, want_idx = [-1], []
+    for a, b in zip(s, e):
+        for i in range(a, b):
+            if i in (a, b - 1) or extra[i] or imp[i] > 0.5 * (px[0] * -z[i] + px[1]):
+                want_idx += [2 * (len(want_ids) - 1), 2 * (len(want_ids) - 1) + 1]
+                want_ids.append(i)
+        want_ids.append(-1)
+        want_idx.append(RESTART)
+    assert ids.tolist() == np.repeat(want_ids, 2).tolist() + [-1] * 4
+    assert idx.tolist() == want_idx
+    # every drawn segment in the group its two end values give, pieces in drawing order
+    v = rng.choice(np.array([0.1, 0.4, 0.6, 0.9, np.nan], np.float32), lines.n_points)
+    lo, hi = [-1e30, 0.5], [0.5, 1e30]
+    out, counts = split_by_range(idx, ids, v, lo, hi)
+    want = [[] for _ in range(3)]
+    for a, b in zip(s, e):
+        kept = [i for i in range(a, b) if i in ids]
+        group = [next((r for r in range(2) if all(lo[r] <= v[j] < hi[r] for j in seg)), 2)
+                 for seg in itertools.pairwise(kept)]
+        for g in range(3):  # consecutive segments of one group form one piece
+            k = 0
+            while k < len(group):
+                if group[k] != g:
+                    k += 1
+                    continue
+                m = k
+                while m < len(group) and group[m] == g:
+                    m += 1
+                for i in kept[k:m + 1]:
+                    el = 2 * (want_ids.index(i) - 1)
+                    want[g] += [el, el + 1]
+                want[g].append(RESTART)
+                k = m
+    assert counts.tolist() == [len(w) for w in want]
+    assert out.tolist() == want[0] + want[1] + want[2]
+
+
 def test_world_unit_width_maps_do_not_redo_the_level_of_detail_each_frame(monkeypatch):
     # a width map in world units has a value tolerance that follows the pixel size: rounded to
     # a power of 2, a turning camera reuses it instead of running a DP over every point per frame

@@ -259,47 +259,53 @@ def _importance(p, v, dv, s, starts, stops, kind, vtol=0.0):
     return imp
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def _select(points, imp, zrow, px, tol, extra, starts, stops):
     """Kept point ids as the strip buffer and the element indices.
 
     ids: the kept points of each run with -1 between runs (and at both ends), every entry twice,
     so strip vertex e = 2k + side reads prev/cur/next at ids[e], ids[e + 2], ids[e + 4].
+    Runs are independent: the first pass marks and counts each run's kept points, the second
+    writes them where the counts before it put them (both parallel over runs).
     """
     n_runs = starts.size
-    total = 0
-    for r in range(n_runs):
-        total += stops[r] - starts[r]
-    k_ids = np.empty(total + n_runs + 1, np.int32)
-    idx = np.empty(2 * total + n_runs, np.uint32)
-    k_ids[0] = -1
-    nk, ni = 1, 0
+    n = 0 if n_runs == 0 else stops.max()
+    keep = np.zeros(max(n, 1), np.uint8)
+    kept = np.zeros(n_runs + 1, np.int64)  # kept points per run, then summed: before each run
     half = 0.5 * tol
-    for r in range(n_runs):
+    for r in numba.prange(n_runs):
         a, b = starts[r], stops[r]
+        c = 0
         for i in range(a, b):
-            keep = tol <= 0.0 or i == a or i == b - 1
-            if not keep and extra.size:
-                keep = extra[i]
-            if not keep:
+            k = tol <= 0.0 or i == a or i == b - 1
+            if not k and extra.size:
+                k = extra[i]
+            if not k:
                 z = zrow[0] * points[i, 0] + zrow[1] * points[i, 1] + zrow[2] * points[i, 2] + zrow[3]
-                keep = imp[i] > half * (px[0] * (-z) + px[1])
-            if keep:
-                k_ids[nk] = i
-                idx[ni] = 2 * (nk - 1)
-                idx[ni + 1] = 2 * (nk - 1) + 1
-                nk += 1
-                ni += 2
-        k_ids[nk] = -1
-        nk += 1
-        idx[ni] = RESTART
-        ni += 1
+                k = imp[i] > half * (px[0] * (-z) + px[1])
+            keep[i] = k
+            c += k
+        kept[r + 1] = c
+    for r in range(n_runs):
+        kept[r + 1] += kept[r]
+    nk = kept[n_runs] + n_runs + 1  # kept entries and a -1 before, between and after the runs
     ids = np.empty(2 * nk + 4, np.int32)
-    for k in range(nk):
-        ids[2 * k] = k_ids[k]
-        ids[2 * k + 1] = k_ids[k]
+    idx = np.empty(2 * kept[n_runs] + n_runs, np.uint32)
+    ids[0] = ids[1] = -1
     ids[2 * nk:] = -1
-    return ids, idx[:ni]
+    for r in numba.prange(n_runs):
+        m = kept[r] + r + 1  # entry of the run's first kept point
+        j = 2 * kept[r] + r  # its first strip index
+        for i in range(starts[r], stops[r]):
+            if keep[i]:
+                ids[2 * m] = ids[2 * m + 1] = i
+                idx[j] = 2 * (m - 1)
+                idx[j + 1] = 2 * (m - 1) + 1
+                m += 1
+                j += 2
+        ids[2 * m] = ids[2 * m + 1] = -1
+        idx[j] = RESTART
+    return ids, idx
 
 
 def select(points, imp, view, px, tol, extra, starts, stops) -> tuple[np.ndarray, np.ndarray]:
@@ -314,16 +320,16 @@ def _split(idx, ids, values, lo, hi, n_groups):
     """Strip indices regrouped: segment m -> m+1 goes to range r when the transfer values of both
     ends lie in [lo[r], hi[r]) (then every value between them does), else to group n_groups
     (mixed, NaN).  Consecutive segments of one group form one strip piece (restart between
-    pieces); the pieces keep their element numbers, so neighbours stay those of the whole run."""
-    out = np.empty(3 * idx.size + 3, np.uint32)  # <= 2 per point + 3 per piece
+    pieces); the pieces keep their element numbers, so neighbours stay those of the whole run.
+    The first pass finds each segment's group and sizes the groups, the second appends each
+    segment to its group's piece."""
+    seg = np.full(idx.size, -1, np.int32)  # group of the segment ending at idx[k]; -1: none
     counts = np.zeros(n_groups + 1, np.int64)
-    # pass 1: each segment's group (-1 before the first point of a run)
-    seg = np.full(idx.size, -1, np.int64)
-    prev = -1  # even element of the previous kept point in this run, -1 at a run start
+    prev, last = -1, -1  # even element of the previous kept point of the run; its segment's group
     for k in range(idx.size):
         e = idx[k]
         if e == RESTART:
-            prev = -1
+            prev, last = -1, -1
             continue
         if e % 2:
             continue
@@ -335,38 +341,36 @@ def _split(idx, ids, values, lo, hi, n_groups):
                     g = r
                     break
             seg[k] = g
+            counts[g] += 2 if g == last else 5  # a new piece adds its first point and a restart
+            last = g
         prev = e
-    # pass 2: per group, pieces of consecutive segments
-    n = 0
-    for g in range(n_groups + 1):
-        start = n
-        prev, open_ = -1, False
-        for k in range(idx.size):
-            e = idx[k]
-            if e == RESTART or e % 2:
-                if e == RESTART:
-                    if open_:
-                        out[n] = RESTART
-                        n += 1
-                    prev, open_ = -1, False
-                continue
-            if seg[k] == g:
-                if not open_:
-                    out[n], out[n + 1] = prev, prev + 1
-                    n += 2
-                    open_ = True
-                out[n], out[n + 1] = e, e + 1
-                n += 2
-            elif open_:
-                out[n] = RESTART
-                n += 1
-                open_ = False
-            prev = e
-        if open_:
-            out[n] = RESTART
-            n += 1
-        counts[g] = n - start
-    return out[:n], counts
+    cur = np.zeros(n_groups + 1, np.int64)  # each group's write position
+    for g in range(1, n_groups + 1):
+        cur[g] = cur[g - 1] + counts[g - 1]
+    out = np.empty(cur[n_groups] + counts[n_groups], np.uint32)
+    prev, open_ = -1, -1  # open_: the group whose piece is open, -1 none
+    for k in range(idx.size):
+        e = idx[k]
+        g = -1 if e == RESTART or e % 2 else seg[k]
+        if open_ >= 0 and (e == RESTART or (g >= 0 and g != open_)):  # the open piece ends
+            out[cur[open_]] = RESTART
+            cur[open_] += 1
+            open_ = -1
+        if e == RESTART:
+            prev = -1
+            continue
+        if e % 2:
+            continue
+        if g >= 0:
+            c = cur[g]
+            if g != open_:  # a new piece starts at the segment's first point
+                out[c], out[c + 1] = prev, prev + 1
+                c += 2
+                open_ = g
+            out[c], out[c + 1] = e, e + 1
+            cur[g] = c + 2
+        prev = e
+    return out, counts
 
 
 def split_by_range(idx, ids, values, lo, hi) -> tuple[np.ndarray, np.ndarray]:
