@@ -18,8 +18,11 @@ from flowkit.render.simplify import (
     arc_parameter,
     attribute_importance,
     attribute_tolerances,
+    displacement_importance,
     geometry_importance,
     hermite,
+    lod_importance,
+    mapped_importance,
     runs,
     select,
     slopes,
@@ -139,6 +142,59 @@ def test_attribute_keeps_the_vertices_its_colormap_needs():
     assert err <= tol["wave"] and 8 < len(kept) < n / 10
     # linear interpolation through them would miss by far more
     assert np.abs(np.interp(x, x[kept], wave[kept]) - wave).max() > 4 * tol["wave"]
+
+
+def _chord_errors(pts, arc, i, j):
+    """Distances of the points between i and j from the chord i-j."""
+    d = pts[j] - pts[i]
+    t = np.clip((pts[i + 1:j] - pts[i]) @ d / (d @ d), 0.0, 1.0)
+    return np.linalg.norm(pts[i + 1:j] - pts[i] - t[:, None] * d, axis=1)
+
+
+def test_one_hierarchy_bounds_every_criterion_with_fewer_points_than_a_union():
+    # a wavy 3-D curve with an attribute that places shapes (time-like) and one mapped to a
+    # colormap (speed-like): the points one DP keeps at T bound the geometric deviation and the
+    # placed attribute's displacement by T, and the mapped one's value error by its tolerance or
+    # its displacement by T, on every chord -- and serve all three with fewer points than the
+    # union of one hierarchy per criterion (which needs half the tolerance for the same bound)
+    n = 3000
+    x = np.linspace(0, 6, n)
+    pts = np.c_[x, 0.3 * np.sin(2 * x), 0.2 * np.cos(3 * x)]
+    s, e = np.array([0]), np.array([n])
+    arc = arc_parameter(pts, s, e)
+    speed = 1.2 + np.sin(1.7 * x) * np.cos(0.4 * x)
+    time = np.cumsum(np.r_[0.0, np.diff(arc) / speed[1:]])
+    mt, ms = slopes(time, arc, s, e), slopes(speed, arc, s, e)
+    vtol, T = 1e-3, 2e-3
+    imp = lod_importance(pts, arc, s, e, [(time, mt)], [(speed, ms, vtol)])
+    kept = np.flatnonzero(imp > T)
+    for i, j in itertools.pairwise(kept):
+        if j - i < 2:
+            continue
+        assert _chord_errors(pts, arc, i, j).max() <= T
+        at = arc[i + 1:j]
+        terr = np.abs(hermite(time, mt, arc, i, j, at) - time[i + 1:j])
+        assert (terr / np.abs(mt[i + 1:j])).max() <= T
+        serr = np.abs(hermite(speed, ms, arc, i, j, at) - speed[i + 1:j])
+        assert np.all((serr <= vtol) | (serr / np.maximum(np.abs(ms[i + 1:j]), 1e-300) <= T))
+    union = ((geometry_importance(pts, s, e) > T / 2)
+             | (displacement_importance(time, mt, arc, s, e) > T / 2)
+             | (mapped_importance(speed, ms, arc, s, e, vtol) > T / 2))
+    geometry = geometry_importance(pts, s, e) > T
+    assert geometry.sum() <= kept.size < 0.75 * union.sum(), (geometry.sum(), kept.size, union.sum())
+
+
+def test_non_finite_mapped_values_and_their_neighbours_are_kept():
+    n = 200
+    pts = np.c_[np.linspace(0, 1, n), np.zeros(n), np.zeros(n)]
+    s, e = np.array([0]), np.array([n])
+    arc = arc_parameter(pts, s, e)
+    v = np.linspace(0, 1, n)
+    v[[50, 120]] = np.nan
+    # kept: the run's ends, each NaN point and its neighbours (the segments next to a NaN have
+    # no colour); the straight stretches between them need no more
+    imp = lod_importance(pts, arc, s, e, (), [(v, slopes(v, arc, s, e), 0.1)])
+    assert set(np.flatnonzero(imp > 1e30)) == {0, 49, 50, 51, 119, 120, 121, n - 1}
 
 
 def test_slopes_are_pchips_and_zero_at_extrema():
@@ -319,8 +375,8 @@ def test_world_unit_width_maps_do_not_redo_the_level_of_detail_each_frame(monkey
     # a power of 2, a turning camera reuses it instead of running a DP over every point per frame
     import flowkit.render.renderer as R
     calls = []
-    real = R.mapped_importance
-    monkeypatch.setattr(R, "mapped_importance", lambda *a: calls.append(a[-1]) or real(*a))
+    real = R.lod_importance
+    monkeypatch.setattr(R, "lod_importance", lambda *a: calls.append(a[-1]) or real(*a))
     lines = helices(6, 400)
     s = style(Band((0, 0, 0, 1), WidthMap("speed", (0.0, 1.0), 0.01, 0.05)), units="world")
     with LineRenderer(lines) as r:
@@ -328,4 +384,4 @@ def test_world_unit_width_maps_do_not_redo_the_level_of_detail_each_frame(monkey
             r.render(s, (160, 120), Camera(azimuth=30 + 0.2 * k))
         assert r.n_drawn > 0
     assert 1 <= len(calls) <= 2, calls
-    assert len(r._displacement) <= R.MAPPED_KEPT
+    assert len(r._lods) <= R.LOD_KEPT

@@ -41,10 +41,9 @@ from .simplify import (
     arc_parameter,
     attribute_importance,
     attribute_tolerances,
-    displacement_importance,
     geometry_importance,
     linear_along_arc,
-    mapped_importance,
+    lod_importance,
     placed_attributes,
     runs,
     select,
@@ -54,7 +53,7 @@ from .simplify import (
 from .style import Style, StyleError, load_style
 
 TOLERANCE = 0.25  # level-of-detail tolerance on software rasterizers, output pixels
-MAPPED_KEPT = 4  # mapped-attribute importances kept per attribute (one per value tolerance)
+LOD_KEPT = 4  # style importances kept (a world-unit width map's tolerance follows the zoom)
 
 
 def _current(method):
@@ -119,9 +118,8 @@ class LineRenderer:
             raise ValueError(f"{lines.n_points} points: too many to draw in one call")
         self._xyz = np.ascontiguousarray(lines.points, np.float64)
         self._importance: dict[str | None, np.ndarray] = {}  # None: geometry
-        # per attribute (placement) or (attribute, value tolerance) (mapped), world units
-        self._displacement: dict[str | tuple[str, float], np.ndarray] = {}
-        self._lod: tuple | None = None  # (key, importance) of the last level-of-detail input
+        # per (placed attributes, mapped attributes' tolerances): a style's importance
+        self._lods: dict[tuple, np.ndarray] = {}
         self._slopes: dict[str, np.ndarray] = {}  # per attribute, d(value)/d(arc)
         self._is_linear: dict[str, bool] = {}  # per attribute: linear along the arc
         # arc length from each run's start: the parameter of the attributes' Hermite interpolant
@@ -258,51 +256,29 @@ class LineRenderer:
             m = self._slopes[name] = slopes(v, self._arc, self._starts, self._stops)
         return m
 
-    def _displacement_of(self, name: str) -> np.ndarray:
-        imp = self._displacement.get(name)
-        if imp is None:
-            v = np.asarray(self._attr_values(name), np.float64)
-            imp = displacement_importance(v, self._slopes_of(name), self._arc, self._starts,
-                                          self._stops)
-            self._displacement[name] = imp
-        return imp
-
-    def _mapped_of(self, name: str, t: float) -> np.ndarray:
-        """``simplify.mapped_importance`` at value tolerance ``t`` (the last few per attribute
-        kept: a world-unit width map's tolerance changes with the zoom, see ``_select``)."""
-        imp = self._displacement.get((name, t))
-        if imp is None:
-            if t > 0:
-                v = np.asarray(self._attr_values(name), np.float64)
-                imp = mapped_importance(v, self._slopes_of(name), self._arc, self._starts,
-                                        self._stops, 0.5 * t)
-            else:
-                imp = np.where(self._importance_of(name) > 0, np.float32(np.inf), np.float32(0))
-            mine = [k for k in self._displacement if isinstance(k, tuple) and k[0] == name]
-            for k in mine[:-(MAPPED_KEPT - 1)]:  # oldest first (dicts keep insertion order)
-                del self._displacement[k]
-            self._displacement[(name, t)] = imp
-        return imp
-
     def _lod_importance(self, placed: tuple[str, ...], tols: dict[str, float]) -> np.ndarray:
         """World-unit importance of every point, compared per frame with the pixel tolerance at
-        the point's depth: the geometry's; the displacement of the attributes that place shapes
-        and patterns; and for the attributes mapped to colour, width or a transfer function,
-        their displacement where their value error exceeds half its tolerance (one DP hierarchy
-        for both conditions, ``simplify.mapped_importance``).  So a dropped point either changes
-        a mapped value by less than its tolerance, or shifts the mapped picture along the line
-        by less than the pixel tolerance (as dropping geometry moves the line).  Errors are
-        those of the Hermite interpolant the shaders draw.  A tolerance of 0 (no known use)
-        keeps every point where that interpolant is not exact."""
+        the point's depth (``simplify.lod_importance``: one DP hierarchy for every criterion):
+        the geometry's deviation; the displacement of the attributes that place shapes and
+        patterns; and for the attributes mapped to colour, width or a transfer function, their
+        displacement where their value error exceeds half its tolerance.  So a dropped point
+        either changes a mapped value by less than its tolerance, or shifts the mapped picture
+        along the line by less than the pixel tolerance (as dropping geometry moves the line).
+        Errors are those of the Hermite interpolant the shaders draw.  A tolerance of 0 (no
+        known use) keeps every point where that interpolant is not exact."""
+        if not placed and not tols:
+            return self._importance_of(None)
         key = (placed, tuple(sorted(tols.items())))
-        if self._lod is not None and self._lod[0] == key:
-            return self._lod[1]
-        imp = self._importance_of(None)
-        for name in placed:
-            imp = np.maximum(imp, self._displacement_of(name))
-        for name, t in tols.items():
-            imp = np.maximum(imp, self._mapped_of(name, t))
-        self._lod = (key, imp)
+        imp = self._lods.get(key)
+        if imp is None:
+            def attr(name):
+                return np.asarray(self._attr_values(name), np.float64), self._slopes_of(name)
+            imp = lod_importance(self._xyz, self._arc, self._starts, self._stops,
+                                 [attr(n) for n in placed],
+                                 [(*attr(n), 0.5 * t) for n, t in sorted(tols.items())])
+            for k in list(self._lods)[:-(LOD_KEPT - 1)]:  # oldest first (dicts keep order)
+                del self._lods[k]
+            self._lods[key] = imp
         return imp
 
     def _data_range(self, name: str) -> float:

@@ -65,8 +65,7 @@ def arc_parameter(points: np.ndarray, starts: np.ndarray, stops: np.ndarray) -> 
 
 def geometry_importance(points, starts, stops) -> np.ndarray:
     """float32 DP importance (world units) of every point; inf at run ends, 0 outside runs."""
-    p = np.ascontiguousarray(points, np.float64)
-    return _importance(p, np.zeros(0), np.zeros(0), np.zeros(0), starts, stops, GEOMETRY)
+    return lod_importance(points, np.zeros(0), starts, stops)
 
 
 def slopes(values, arc, starts, stops) -> np.ndarray:
@@ -109,8 +108,7 @@ def hermite(values, slopes_, arc, i, j, at) -> np.ndarray:
 def attribute_importance(values, slopes_, arc, starts, stops) -> np.ndarray:
     """float32 DP importance (attribute units) of a scalar attribute along the arc parameter,
     against the Hermite interpolant of ``slopes``; inf where a value is not finite."""
-    v = np.ascontiguousarray(values, np.float64)
-    return _importance(np.zeros((0, 3)), v, slopes_, arc, starts, stops, VALUE)
+    return _attribute_importance(values, slopes_, arc, starts, stops, VALUE)
 
 
 def displacement_importance(values, slopes_, arc, starts, stops) -> np.ndarray:
@@ -118,16 +116,43 @@ def displacement_importance(values, slopes_, arc, starts, stops) -> np.ndarray:
     patterns: how far from the vertex the Hermite interpolant reaches the vertex's value (the
     value error over the slope there); inf at local extrema it misses and where a value is not
     finite."""
-    v = np.ascontiguousarray(values, np.float64)
-    return _importance(np.zeros((0, 3)), v, slopes_, arc, starts, stops, DISPLACEMENT)
+    return _attribute_importance(values, slopes_, arc, starts, stops, DISPLACEMENT)
 
 
 def mapped_importance(values, slopes_, arc, starts, stops, value_tol: float) -> np.ndarray:
     """float32 DP importance (world units) of an attribute mapped to colour, width or a transfer
     function: its displacement where its value error exceeds ``value_tol``, else 0 -- one
-    hierarchy, so that the kept points satisfy both conditions on the same chords."""
-    v = np.ascontiguousarray(values, np.float64)
-    return _importance(np.zeros((0, 3)), v, slopes_, arc, starts, stops, MAPPED, value_tol)
+    hierarchy, so that the kept points satisfy both conditions on the same chords.
+    ``value_tol`` <= 0: inf wherever the interpolant is not exact."""
+    return _attribute_importance(values, slopes_, arc, starts, stops, MAPPED, value_tol)
+
+
+def _attribute_importance(values, slopes_, arc, starts, stops, kind, vtol=0.0) -> np.ndarray:
+    v = np.ascontiguousarray(values, np.float64)[None]
+    m = np.ascontiguousarray(slopes_, np.float64)[None]
+    return _importance(np.zeros((0, 3)), v, m, np.asarray(arc, np.float64),
+                       np.array([kind], np.int64), np.array([vtol], np.float64), starts, stops)
+
+
+def lod_importance(points, arc, starts, stops, placed=(), mapped=()) -> np.ndarray:
+    """float32 DP importance (world units) of every point for a style: one hierarchy whose
+    deviation at a point is the largest of its geometric deviation, the displacement of each
+    attribute in ``placed`` ((values, slopes) pairs: attributes that place shapes and
+    patterns) and that of each attribute in ``mapped`` ((values, slopes, value tolerance):
+    colour, width, transfer; see ``mapped_importance``).  So the points DP keeps at a tolerance
+    bound every one of these errors by it, and a point that the geometry keeps anyway serves
+    the attributes too: on the issue-6 benchmark scene a union of one hierarchy per criterion
+    drew 522k points where this draws 362k (geometry alone: 361k)."""
+    p = np.ascontiguousarray(points, np.float64)
+    crit = [(v, m, DISPLACEMENT, 0.0) for v, m in placed] + [(v, m, MAPPED, t) for v, m, t in mapped]
+    n = p.shape[0]
+    V = np.zeros((len(crit), n))
+    DV = np.zeros((len(crit), n))
+    for q, (v, m, _, _) in enumerate(crit):
+        V[q], DV[q] = v, m
+    kinds = np.array([c[2] for c in crit], np.int64)
+    vtols = np.array([c[3] for c in crit], np.float64)
+    return _importance(p, V, DV, np.asarray(arc, np.float64), kinds, vtols, starts, stops)
 
 
 @numba.njit(cache=True)
@@ -205,12 +230,19 @@ def _deviation(p, v, dv, s, i, j, m, kind, vtol, L, d, a, b):
         t = 0.0 if dd == 0.0 else min(max((mx * dx + my * dy + mz * dz) / dd, 0.0), 1.0)
         ex, ey, ez = mx - t * dx, my - t * dy, mz - t * dz
         return math.sqrt(ex * ex + ey * ey + ez * ez)
+    if not (abs(v[i]) <= 1e300 and abs(v[j]) <= 1e300):
+        # a non-finite end value: the fragments get no value over the whole chord, the traced
+        # line only on the segments next to that end, so split next to it (then the points
+        # around a NaN are kept, and no others for it)
+        return OUTSIDE * (1.0 + (m - i if not abs(v[j]) <= 1e300 else j - m))
     u = (s[m] - s[i]) / L if L > 0.0 else (m - i) / (j - i)
     h = v[i] + u * (d + (1.0 - u) * ((1.0 - u) * a + u * b))
     err = abs(v[m] - h)
     if kind == VALUE:
         return err
-    if kind == MAPPED and not err > vtol:  # (NaN: kept below)
+    if kind == MAPPED and vtol <= 0.0:  # no tolerance known: exact or kept
+        return OUTSIDE if err != 0.0 else 0.0
+    if kind == MAPPED and err <= vtol:  # (NaN: kept, below)
         return 0.0
     # displacement: the value error over the slope.  Where the slope is 0 (an extremum) and the
     # value is missed, beyond every finite importance (inf once stored as float32), ordered by
@@ -223,8 +255,12 @@ def _deviation(p, v, dv, s, i, j, m, kind, vtol, L, d, a, b):
 
 
 @numba.njit(cache=True, parallel=True)
-def _importance(p, v, dv, s, starts, stops, kind, vtol=0.0):
-    n = p.shape[0] if kind == GEOMETRY else v.shape[0]
+def _importance(p, V, DV, s, kinds, vtols, starts, stops):
+    """DP importances with the deviation at a point the largest of the criteria: the geometric
+    one when ``p`` has points, and per row q of V (values) and DV (slopes) that of kinds[q] at
+    value tolerance vtols[q]."""
+    geometry = p.shape[0] > 0
+    n = p.shape[0] if geometry else V.shape[1]
     imp = np.zeros(n, np.float32)
     for r in numba.prange(starts.size):  # runs are independent
         a, b = starts[r], stops[r] - 1
@@ -233,6 +269,7 @@ def _importance(p, v, dv, s, starts, stops, kind, vtol=0.0):
         si = np.empty(b - a + 1, np.int64)  # stack of (first, last, parent importance)
         sj = np.empty(b - a + 1, np.int64)
         sc = np.empty(b - a + 1)
+        chord = np.empty((kinds.size, 4))  # per criterion: the interpolant on the chord
         si[0], sj[0], sc[0] = a, b, np.inf
         top = 1
         while top > 0:
@@ -243,12 +280,20 @@ def _importance(p, v, dv, s, starts, stops, kind, vtol=0.0):
             if j - i > MAX_SPAN:
                 k, e = (i + j) // 2, cap
             else:
+                for q in range(kinds.size):
+                    L, dd, ca, cb = _chord(V[q], DV[q], s, i, j)
+                    chord[q, 0], chord[q, 1], chord[q, 2], chord[q, 3] = L, dd, ca, cb
                 best, k = -1.0, i + 1
-                L, dd, ca, cb = _chord(v, dv, s, i, j) if kind != GEOMETRY else (0.0, 0.0, 0.0, 0.0)
                 for m in range(i + 1, j):
-                    d = _deviation(p, v, dv, s, i, j, m, kind, vtol, L, dd, ca, cb)
-                    if not d <= 1e300:  # NaN or inf (non-finite attribute): always keep
-                        d = np.inf
+                    d = 0.0
+                    if geometry:
+                        d = _deviation(p, s, s, s, i, j, m, GEOMETRY, 0.0, 0.0, 0.0, 0.0, 0.0)
+                    for q in range(kinds.size):
+                        dq = _deviation(p, V[q], DV[q], s, i, j, m, kinds[q], vtols[q],
+                                        chord[q, 0], chord[q, 1], chord[q, 2], chord[q, 3])
+                        if not dq <= 1e300:  # NaN or inf (non-finite attribute): always keep
+                            dq = np.inf
+                        d = max(d, dq)
                     if d > best:
                         best, k = d, m
                 e = min(best, cap)
