@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import moderngl
 import numpy as np
 import pytest
 from render_scenes import FACE_ON, project, straight, style
 
 from flowkit.lines import Lines
 from flowkit.render import Band, Camera, ColorMap, LineRenderer, WidthMap, render_lines
-from flowkit.render.colormaps import colormap_lut
+from flowkit.render.colormaps import TEXELS, colormap_lut, colormap_texture
+from flowkit.render.context import default_context
 
 RED, BLUE, WHITE, BLACK, GREY = (1, 0, 0, 1), (0, 0, 1, 1), (1, 1, 1, 1), (0, 0, 0, 1), (.5, .5, .5, 1)
 SIZE = (200, 100)
@@ -89,6 +91,23 @@ def test_width_mapping_is_linear_in_attribute():
     np.testing.assert_allclose(widths, expected, atol=1)
     slope = np.polyfit(values, widths, 1)[0]
     assert slope == pytest.approx(8.0, abs=0.5)
+
+
+@pytest.mark.parametrize("name", ["viridis", "turbo", "gray"])
+def test_colormap_texture_gives_the_lut_colour_within_one_level(name):
+    # 8-bit texels read with nearest filtering at the shaders' coordinate (the texel nearest to
+    # t (TEXELS - 1)) stand for the float LUT, linear between its entries
+    ctx = default_context()
+    with ctx:
+        tex = colormap_texture(ctx, name)
+        assert tex.filter == (moderngl.NEAREST, moderngl.NEAREST)
+        texels = np.frombuffer(tex.read(), np.uint8).reshape(-1, 4).astype(float)
+    lut = colormap_lut(name)
+    t = np.linspace(0.0, 1.0, 100001)
+    want = np.stack([np.interp(t * (len(lut) - 1), np.arange(len(lut)), lut[:, c])
+                     for c in range(4)], axis=1) * 255
+    got = texels[np.floor(t * (TEXELS - 1) + 0.5).astype(int)]
+    assert np.abs(got - want).max() <= 0.75
 
 
 def test_colormapped_band_shows_colormap_in_attribute_order():
