@@ -367,10 +367,13 @@ def select(points, imp, view, px, tol, extra, starts, stops) -> tuple[np.ndarray
 def _split(idx, ids, values, lo, hi, n_groups):
     """Strip indices regrouped: segment m -> m+1 goes to range r when the transfer values of both
     ends lie in [lo[r], hi[r]) (then every value between them does), else to group n_groups
-    (mixed, NaN).  Consecutive segments of one group form one strip piece (restart between
-    pieces); the pieces keep their element numbers, so neighbours stay those of the whole run.
+    (mixed, NaN).  Consecutive segments of one group form one strip piece; the pieces keep their
+    element numbers, so neighbours stay those of the whole run.  A group's pieces form one strip,
+    joined by repeating the last index of a piece and the first of the next (four zero-area
+    triangles) rather than by primitive restarts: a draw module splits an indexed draw at every
+    restart into a draw of its own, and the pieces of a transfer range can be a few points long.
     The first pass finds each segment's group and sizes the groups, the second appends each
-    segment to its group's piece."""
+    segment to its group's strip."""
     seg = np.full(idx.size, -1, np.int32)  # group of the segment ending at idx[k]; -1: none
     counts = np.zeros(n_groups + 1, np.int64)
     prev, last = -1, -1  # even element of the previous kept point of the run; its segment's group
@@ -389,29 +392,31 @@ def _split(idx, ids, values, lo, hi, n_groups):
                     g = r
                     break
             seg[k] = g
-            counts[g] += 2 if g == last else 5  # a new piece adds its first point and a restart
+            if g != last:  # a new piece: its first point, and a join after an earlier piece
+                counts[g] += 4 if counts[g] else 2
+            counts[g] += 2
             last = g
         prev = e
-    cur = np.zeros(n_groups + 1, np.int64)  # each group's write position
+    start = np.zeros(n_groups + 1, np.int64)  # each group's first position
     for g in range(1, n_groups + 1):
-        cur[g] = cur[g - 1] + counts[g - 1]
-    out = np.empty(cur[n_groups] + counts[n_groups], np.uint32)
-    prev, open_ = -1, -1  # open_: the group whose piece is open, -1 none
+        start[g] = start[g - 1] + counts[g - 1]
+    cur = start.copy()  # each group's write position
+    out = np.empty(start[n_groups] + counts[n_groups], np.uint32)
+    prev, open_ = -1, -1  # open_: the group whose piece the previous segment continued
     for k in range(idx.size):
         e = idx[k]
-        g = -1 if e == RESTART or e % 2 else seg[k]
-        if open_ >= 0 and (e == RESTART or (g >= 0 and g != open_)):  # the open piece ends
-            out[cur[open_]] = RESTART
-            cur[open_] += 1
-            open_ = -1
         if e == RESTART:
-            prev = -1
+            prev, open_ = -1, -1
             continue
         if e % 2:
             continue
+        g = seg[k]
         if g >= 0:
             c = cur[g]
             if g != open_:  # a new piece starts at the segment's first point
+                if c > start[g]:  # joined to the group's previous piece
+                    out[c], out[c + 1] = out[c - 1], prev
+                    c += 2
                 out[c], out[c + 1] = prev, prev + 1
                 c += 2
                 open_ = g
@@ -436,7 +441,7 @@ def adjacency(idx: np.ndarray) -> np.ndarray:
     the neighbours outside the run read the -1 that ``select`` puts between runs."""
     pos = np.flatnonzero((idx != RESTART) & (idx % 2 == 0))
     ev = idx[pos].astype(np.int64)  # 2(m-1) per kept entry m
-    # segments: the next kept entry follows in the same strip (no restart between them)
+    # segments: the next kept entry follows in the same strip (no restart or join between)
     first = ev[:-1][(np.diff(ev) == 2) & (np.diff(pos) == 2)]
     return (first[:, None] + np.arange(0, 8, 2)).astype(np.uint32).reshape(-1)
 
