@@ -375,6 +375,8 @@ def _split(idx, ids, values, lo, hi, n_groups):
     The first pass finds each segment's group and sizes the groups, the second appends each
     segment to its group's strip."""
     seg = np.full(idx.size, -1, np.int32)  # group of the segment ending at idx[k]; -1: none
+    first = np.zeros(idx.size, np.uint32)  # even element of that segment's first point
+    new = np.zeros(idx.size, np.int8)  # 1: the segment starts a piece
     counts = np.zeros(n_groups + 1, np.int64)
     prev, last = -1, -1  # even element of the previous kept point of the run; its segment's group
     for k in range(idx.size):
@@ -391,8 +393,9 @@ def _split(idx, ids, values, lo, hi, n_groups):
                 if lo[r] <= va < hi[r] and lo[r] <= vb < hi[r]:
                     g = r
                     break
-            seg[k] = g
+            seg[k], first[k] = g, prev
             if g != last:  # a new piece: its first point, and a join after an earlier piece
+                new[k] = 1
                 counts[g] += 4 if counts[g] else 2
             counts[g] += 2
             last = g
@@ -402,27 +405,19 @@ def _split(idx, ids, values, lo, hi, n_groups):
         start[g] = start[g - 1] + counts[g - 1]
     cur = start.copy()  # each group's write position
     out = np.empty(start[n_groups] + counts[n_groups], np.uint32)
-    prev, open_ = -1, -1  # open_: the group whose piece the previous segment continued
     for k in range(idx.size):
-        e = idx[k]
-        if e == RESTART:
-            prev, open_ = -1, -1
-            continue
-        if e % 2:
-            continue
         g = seg[k]
-        if g >= 0:
-            c = cur[g]
-            if g != open_:  # a new piece starts at the segment's first point
-                if c > start[g]:  # joined to the group's previous piece
-                    out[c], out[c + 1] = out[c - 1], prev
-                    c += 2
-                out[c], out[c + 1] = prev, prev + 1
+        if g < 0:
+            continue
+        c = cur[g]
+        if new[k]:
+            if c > start[g]:  # joined to the group's previous piece
+                out[c], out[c + 1] = out[c - 1], first[k]
                 c += 2
-                open_ = g
-            out[c], out[c + 1] = e, e + 1
-            cur[g] = c + 2
-        prev = e
+            out[c], out[c + 1] = first[k], first[k] + 1
+            c += 2
+        out[c], out[c + 1] = idx[k], idx[k] + 1
+        cur[g] = c + 2
     return out, counts
 
 
