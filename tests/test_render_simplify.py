@@ -281,7 +281,10 @@ def test_mapped_attribute_points_drop_where_their_colours_move_less_than_the_tol
         with LineRenderer(lines, tolerance=0.0) as full, LineRenderer(lines) as lod:
             a, b = full.render(s, size, cam), lod.render(s, size, cam)
             kept.append(lod.n_drawn)
-            value_only = int(np.sum(lod._importance_of("v") > 0.5 * 20 / 512))
+            v = lines.point_data["v"]
+            m = slopes(v, lod._arc, lod._starts, lod._stops)
+            value_only = int(np.sum(attribute_importance(v, m, lod._arc, lod._starts, lod._stops)
+                                    > 0.5 * 20 / 512))
         diff = np.abs(a.astype(int) - b.astype(int)).max(axis=2)
         assert np.any(a[..., :3] != 255)
         assert diff.max() <= 4, diff.max()  # colours shifted by < 0.25 px along the line

@@ -19,12 +19,6 @@ def colormap_lut(name: str, n: int = LUT_SIZE) -> np.ndarray:
     return np.ascontiguousarray(cmap.Colormap(name).lut(n), dtype=np.float32)
 
 
-def lut_coordinate(t: np.ndarray | float, n: int = LUT_SIZE):
-    """Texture coordinate of normalised value t in [0, 1]: texel centres at both ends, so t=0
-    gives exactly the first LUT entry and t=1 the last (the shaders use the same formula)."""
-    return np.asarray(t) * (n - 1) / n + 0.5 / n
-
-
 def colormap_texture(ctx: moderngl.Context, name: str) -> moderngl.Texture:
     """A 1-D RGBA8 texture of the colormap, cached per context: the LUT (linear between its
     LUT_SIZE entries) resampled at TEXELS entries and read with nearest filtering.  A software

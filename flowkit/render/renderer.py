@@ -39,7 +39,6 @@ from .shader_build import (
 from .simplify import (
     adjacency,
     arc_parameter,
-    attribute_importance,
     attribute_tolerances,
     geometry_importance,
     linear_along_arc,
@@ -117,7 +116,7 @@ class LineRenderer:
         if 2 * lines.n_points + len(self._starts) + 6 >= 2**31:
             raise ValueError(f"{lines.n_points} points: too many to draw in one call")
         self._xyz = np.ascontiguousarray(lines.points, np.float64)
-        self._importance: dict[str | None, np.ndarray] = {}  # None: geometry
+        self._geometry: np.ndarray | None = None  # DP importance of the geometry alone
         # per (placed attributes, mapped attributes' tolerances): a style's importance
         self._lods: dict[tuple, np.ndarray] = {}
         self._slopes: dict[str, np.ndarray] = {}  # per attribute, d(value)/d(arc)
@@ -228,17 +227,10 @@ class LineRenderer:
         raise StyleError(f"the style reads attribute '{name}', which these lines do not "
                          f"have; available: {', '.join(have) or 'none'}")
 
-    def _importance_of(self, name: str | None) -> np.ndarray:
-        imp = self._importance.get(name)
-        if imp is None:
-            if name is None:
-                imp = geometry_importance(self._xyz, self._starts, self._stops)
-            else:
-                v = np.asarray(self._attr_values(name), np.float64)
-                imp = attribute_importance(v, self._slopes_of(name), self._arc, self._starts,
-                                           self._stops)
-            self._importance[name] = imp
-        return imp
+    def _geometry_importance(self) -> np.ndarray:
+        if self._geometry is None:
+            self._geometry = geometry_importance(self._xyz, self._starts, self._stops)
+        return self._geometry
 
     def _linear(self, style: Style) -> tuple[str, ...]:
         """The attributes ``style`` reads that change linearly along the arc (see shader_flags)."""
@@ -267,7 +259,7 @@ class LineRenderer:
         Errors are those of the Hermite interpolant the shaders draw.  A tolerance of 0 (no
         known use) keeps every point where that interpolant is not exact."""
         if not placed and not tols:
-            return self._importance_of(None)
+            return self._geometry_importance()
         key = (placed, tuple(sorted(tols.items())))
         imp = self._lods.get(key)
         if imp is None:

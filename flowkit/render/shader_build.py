@@ -290,7 +290,7 @@ def build_sources(flags: ShaderFlags) -> dict[str, str]:
     """GLSL sources for ``flags``: vertex and fragment shaders, plus the geometry shader when it
     builds the strips (then the vertex shader only fetches points)."""
     ctx = _checked(asdict(flags))
-    ctx.update(glsl_version=GLSL_VERSION, lut_size=TEXELS, tex_width=TEX_WIDTH,
+    ctx.update(glsl_version=GLSL_VERSION, cmap_texels=TEXELS, tex_width=TEX_WIDTH,
                curve_size=CURVE_SIZE, uses_colormap=flags.uses_colormap,
                uses_width_map=flags.uses_width_map, shapes=_checked(flags.shapes, "shapes"),
                uses_phase=flags.uses_phase, pattern_slots=flags.pattern_slots,

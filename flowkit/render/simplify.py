@@ -41,7 +41,7 @@ from ..lines import Lines
 from .style import ColorMap, Style, WidthMap
 
 RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
-GEOMETRY, VALUE, DISPLACEMENT, MAPPED = 0, 1, 2, 3  # importance kinds
+VALUE, DISPLACEMENT, MAPPED = 1, 2, 3  # kinds of attribute deviation
 OUTSIDE = 1e200  # displacement at an extremum: overflows to inf in the float32 importance
 MAX_SPAN = 4096  # longer pieces are split at their middle (which shares its parent's importance)
 # unscanned, so the DP cost stays O(n log n + n * MAX_SPAN) whatever the curve
@@ -225,15 +225,20 @@ def _chord(v, dv, s, i, j):
 
 
 @numba.njit(cache=True)
-def _deviation(p, v, dv, s, i, j, m, kind, vtol, L, d, a, b):
-    if kind == GEOMETRY:  # distance from point m to the segment i-j
-        dx, dy, dz = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1], p[j, 2] - p[i, 2]
-        mx, my, mz = p[m, 0] - p[i, 0], p[m, 1] - p[i, 1], p[m, 2] - p[i, 2]
-        dd = dx * dx + dy * dy + dz * dz
-        t = 0.0 if dd == 0.0 else min(max((mx * dx + my * dy + mz * dz) / dd, 0.0), 1.0)
-        ex, ey, ez = mx - t * dx, my - t * dy, mz - t * dz
-        return math.sqrt(ex * ex + ey * ey + ez * ez)
-    if not (abs(v[i]) <= 1e300 and abs(v[j]) <= 1e300):
+def _distance(p, i, j, m):
+    """Distance from point m to the segment i-j (the geometric deviation)."""
+    dx, dy, dz = p[j, 0] - p[i, 0], p[j, 1] - p[i, 1], p[j, 2] - p[i, 2]
+    mx, my, mz = p[m, 0] - p[i, 0], p[m, 1] - p[i, 1], p[m, 2] - p[i, 2]
+    dd = dx * dx + dy * dy + dz * dz
+    t = 0.0 if dd == 0.0 else min(max((mx * dx + my * dy + mz * dz) / dd, 0.0), 1.0)
+    ex, ey, ez = mx - t * dx, my - t * dy, mz - t * dz
+    return math.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+@numba.njit(cache=True)
+def _deviation(v, dv, s, i, j, m, kind, vtol, L, d, a, b):
+    """An attribute's deviation at m from its interpolant on the chord i-j (``_chord``)."""
+    if not abs(d) <= 1e300:
         # a non-finite end value: the fragments get no value over the whole chord, the traced
         # line only on the segments next to that end, so split next to it (then the points
         # around a NaN are kept, and no others for it)
@@ -288,11 +293,9 @@ def _importance(p, V, DV, s, kinds, vtols, starts, stops):
                     chord[q, 0], chord[q, 1], chord[q, 2], chord[q, 3] = L, dd, ca, cb
                 best, k = -1.0, i + 1
                 for m in range(i + 1, j):
-                    d = 0.0
-                    if geometry:
-                        d = _deviation(p, s, s, s, i, j, m, GEOMETRY, 0.0, 0.0, 0.0, 0.0, 0.0)
+                    d = _distance(p, i, j, m) if geometry else 0.0
                     for q in range(kinds.size):
-                        dq = _deviation(p, V[q], DV[q], s, i, j, m, kinds[q], vtols[q],
+                        dq = _deviation(V[q], DV[q], s, i, j, m, kinds[q], vtols[q],
                                         chord[q, 0], chord[q, 1], chord[q, 2], chord[q, 3])
                         if not dq <= 1e300:  # NaN or inf (non-finite attribute): always keep
                             dq = np.inf

@@ -4,7 +4,7 @@
    global number; attribute slots come from the flags, never names. #}
 {% macro color_uniforms(kind, prefix, g) %}
 {% if kind == "cmap" %}
-uniform sampler2D u_{{ prefix }}cmap{{ g }};     // colormap LUT ({{ lut_size }} x 1)
+uniform sampler2D u_{{ prefix }}cmap{{ g }};     // colormap, {{ cmap_texels }} texels (nearest)
 uniform vec2 u_{{ prefix }}crange{{ g }};        // t = attr * x + y maps the range to [0, 1]
 {% else %}
 uniform vec4 u_{{ prefix }}color{{ g }};
@@ -35,7 +35,7 @@ uniform vec4 u_pat{{ b.index }};           // 1 / length, slope a, curve c, frac
 
 {% macro color_value(kind, prefix, g, slot) -%}
 {% if kind == "cmap" -%}
-texture(u_{{ prefix }}cmap{{ g }}, vec2(clamp(g_attr{{ slot }} * u_{{ prefix }}crange{{ g }}.x + u_{{ prefix }}crange{{ g }}.y, 0.0, 1.0) * {{ (lut_size - 1) / lut_size }} + {{ 0.5 / lut_size }}, 0.5))
+texture(u_{{ prefix }}cmap{{ g }}, vec2(clamp(g_attr{{ slot }} * u_{{ prefix }}crange{{ g }}.x + u_{{ prefix }}crange{{ g }}.y, 0.0, 1.0) * {{ (cmap_texels - 1) / cmap_texels }} + {{ 0.5 / cmap_texels }}, 0.5))
 {%- else -%}
 u_{{ prefix }}color{{ g }}
 {%- endif %}
