@@ -1,6 +1,8 @@
 """flowkit: streamlines through gridded 3D vector fields, stored in HDF5, rendered with line styles."""
 
-from . import numba_cache
+from . import compile_notice, numba_cache
+
+compile_notice.install()  # say so when a kernel compiles for seconds (a fresh machine)
 
 if numba_cache.IN_WORKING_TREE:  # edited sources: no stale compiled kernels (see numba_cache)
     numba_cache.drop_stale()

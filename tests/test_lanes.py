@@ -5,6 +5,7 @@ import re
 
 import numpy as np
 import pytest
+from numba import njit
 
 from flowkit import trace
 from flowkit.fields.analytic import ABCFlow, SolidBodyRotation
@@ -123,6 +124,12 @@ def test_lockstep_takes_the_interior_steps():
         assert np.array_equal(out_p[n, :m], ref.points[ref.offsets[n]:ref.offsets[n] + m])
 
 
+@njit
+def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row):
+    # the kernel's helpers have no Python wrapper (they are only called from compiled code)
+    return K._f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row)
+
+
 def test_kernel_locates_a_point_on_a_face_afresh():
     """The scalar kernel keeps its cached cell only while a point is strictly inside it, so a
     point on a face gets the cell a fresh lookup gives (what the lock-step does), not the cell
@@ -137,12 +144,12 @@ def test_kernel_locates_a_point_on_a_face_afresh():
     ci, cf, coef, k = np.full(3, -1, np.int64), np.zeros(9), np.zeros((8, 3)), np.zeros((5, 4))
     y, z = gy[7] + 0.3 * (gy[8] - gy[7]), gz[9] + 0.6 * (gz[10] - gz[9])
     inside = gx[m - 1] + 0.5 * (gx[m] - gx[m - 1])
-    K._f(inside, y, z, 1, False, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+    _f(inside, y, z, 1, False, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
     assert ci[0] == m - 1
-    K._f(gx[m], y, z, 1, False, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 1)
+    _f(gx[m], y, z, 1, False, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 1)
     assert ci[0] == m  # located afresh; the cell below holds the point too
     fresh = np.full(3, -1, np.int64), np.zeros(9), np.zeros((8, 3)), np.zeros((5, 4))
-    K._f(gx[m], y, z, 1, False, gx, gy, gz, period, inv, vec, *fresh, 0)
+    _f(gx[m], y, z, 1, False, gx, gy, gz, period, inv, vec, *fresh, 0)
     assert np.array_equal(k[1], fresh[3][0])
 
 
@@ -154,7 +161,7 @@ def test_lockstep_is_vector_code():
     assembly to read).  Only where LLVM surely finds gathers worth it (AVX-512, numba compiling
     for this host): on older CPUs its cost model may keep scalar code, which is slower but right."""
     from llvmlite import binding
-    from numba import config, njit
+    from numba import config
 
     if config.CPU_NAME or "+avx512f" not in binding.get_host_cpu_features().flatten():
         pytest.skip("needs numba compiling for an AVX-512 host")

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from numba import njit
 
 from flowkit import trace
 from flowkit.cli import main
@@ -26,12 +27,18 @@ STIFF_GRID = STIFF.to_field((4, 4, 11))  # linear: trilinear-exact; the fixed ax
 SEEDS = np.array([[0.5, -0.3, 0.0], [0.9, 0.2, 1.0], [-0.2, -0.7, 0.5]])
 
 
+@njit
+def _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef):
+    # the kernel's helpers have no Python wrapper (they are only called from compiled code)
+    return K._relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+
+
 def test_cell_jacobian_is_the_exact_gradient_of_the_interpolant():
     fld = ABCFlow().to_field(9, bounds=[[0, 2.0]] * 3, periodic=False)
     g = fld.grid
     p = np.array([0.61, 1.13, 0.37])
     coef, cf, ci = np.empty((8, 3)), np.empty(9), np.full(3, -1, np.int64)
-    assert K._relocate(*g.kernel_args(), fld.vector, *p, ci, cf, coef)
+    assert _relocate(*g.kernel_args(), fld.vector, *p, ci, cf, coef)
     J = np.empty((3, 3))
     cell_jacobian(coef, cf, *p, J)
     eps = 1e-6  # central differences of the trilinear interpolant (within the same cell)
@@ -40,7 +47,7 @@ def test_cell_jacobian_is_the_exact_gradient_of_the_interpolant():
     np.testing.assert_allclose(J, fd, rtol=1e-7, atol=1e-8)
     # and on a linear field it is the field's matrix
     lin = STIFF_GRID
-    assert K._relocate(*lin.grid.kernel_args(), lin.vector, 0.2, -0.1, 3.3, ci, cf, coef)
+    assert _relocate(*lin.grid.kernel_args(), lin.vector, 0.2, -0.1, 3.3, ci, cf, coef)
     cell_jacobian(coef, cf, 0.2, -0.1, 3.3, J)
     np.testing.assert_allclose(J, STIFF.A, rtol=1e-12, atol=1e-8)
 

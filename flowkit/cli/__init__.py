@@ -24,8 +24,22 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _show_compile_notices() -> None:
+    """The compile notices (flowkit.compile_notice) on stderr, once per kernel."""
+    import logging
+
+    log = logging.getLogger("flowkit.compile")
+    if not log.handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("flowkit: %(message)s"))
+        log.addHandler(handler)
+        log.setLevel(logging.INFO)
+        log.propagate = False
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    _show_compile_notices()
     try:
         return int(args.func(args) or 0)
     except (CLIError, FileNotFoundError, ValueError, KeyError, OSError) as e:

@@ -38,6 +38,7 @@ from numba.extending import intrinsic
 from ..fields.interp import locate_axis
 from .reasons import Reason
 from .stiffness import NONSTIFF_RESET, STIFF_STEPS, dp5_hlambda, stiff_update  # noqa: F401 (CL)
+from .threads import run_ranges
 
 QMAX = 8  # highest dense-output degree a method may have
 # float state (sf) columns
@@ -74,6 +75,17 @@ R_STAG = int(Reason.STAGNATION)
 R_UNDER = int(Reason.STEP_UNDERFLOW)
 R_NAN = int(Reason.NAN_FIELD)
 R_SEED = int(Reason.SEED_OUTSIDE)
+
+# The step loop's helpers.  numba's IR inlining (``inline="always"``) types and lowers a copy
+# of a helper at every call site: with every helper inlined, the kernel took minutes to compile
+# on a fresh machine.  It is kept for the helpers on the per-step path (evaluation, cell moves,
+# dense output, events: as calls they cost a fifth of a cell-aware step, measured) and the
+# single-caller ones; the others are ``helper``s, compiled once and called.  No NRT: they never
+# allocate, and reference counting of the arrays they take would cost more than their work.
+# numpy's error model: a division by zero gives inf or NaN, which the loop tests for (a zero
+# speed in arc-length mode), instead of an exception path per division.  Constants are passed
+# typed (np.int64(0)): a literal 0 or True argument compiles one more copy per value.
+helper = njit(cache=True, _nrt=False, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 # -- cells ----------------------------------------------------------------------------------
@@ -154,7 +166,7 @@ def _width(c, period, i):
     return c[0] + period - c[n - 1]
 
 
-@njit(cache=True, inline="always")
+@helper
 def _locate_cell(c, period, inv, x):
     """(i, lo, hi) of the cell of x on one axis; bounded axes clamp to the end cells."""
     n = c.size
@@ -200,7 +212,7 @@ def _gather(vec, ci, coef):
     return bad == 0.0
 
 
-@njit(cache=True, _nrt=False)
+@helper
 def _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef):
     i, lo, hi = _locate_cell(gx, period[0], inv[0], px)
     ci[0] = i
@@ -301,12 +313,10 @@ def _move(a, up, c, per, vec, ci, cf, coef):
 
 @njit(cache=True, inline="always")
 def _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef):
-    # no array variable chosen at run time: that would cost reference counting in the loop
-    if a == 0:
-        return _move(0, up, gx, period[0], vec, ci, cf, coef)
-    if a == 1:
-        return _move(1, up, gy, period[1], vec, ci, cf, coef)
-    return _move(2, up, gz, period[2], vec, ci, cf, coef)
+    # the axis array chosen at run time: no reference counting here (no NRT in the step loop),
+    # and one copy of _move at each call site rather than one per axis
+    c = gx if a == 0 else (gy if a == 1 else gz)
+    return _move(a, up, c, period[a], vec, ci, cf, coef)
 
 
 @njit(cache=True, inline="always")
@@ -385,12 +395,13 @@ def _put(out_p, out_par, out_n, slot, px, py, pz, t, s):
     out_n[slot] = n + 1
 
 
-@njit(cache=True)
+@helper
 def _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B):
     """Emit the resampled vertices of the last step (and the final vertex once the line is done).
 
     Returns False when the buffer filled up first (the line suspends; the rest stays pending).
     """
+    C0, C1, C2, C3 = np.int64(0), np.int64(1), np.int64(2), np.int64(3)  # typed (see helper)
     if si[l, I_PEND] != 0:
         hs = sf[l, S_HS]
         th_end = sf[l, S_TH]
@@ -412,11 +423,11 @@ def _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, 
                 if param == 1:
                     th = (d * target - tau0) / hs
                 else:
-                    th = _root(qd, 3, q, dep0, hs, d * target, d, th_end)
-                px = _dense(qd, 0, q, sf[l, S_Y0], hs, th)
-                py = _dense(qd, 1, q, sf[l, S_Y0 + 1], hs, th)
-                pz = _dense(qd, 2, q, sf[l, S_Y0 + 2], hs, th)
-                t = tau0 + th * hs if param == 0 else _dense(qd, 3, q, dep0, hs, th)
+                    th = _root(qd, C3, q, dep0, hs, d * target, d, th_end)
+                px = _dense(qd, C0, q, sf[l, S_Y0], hs, th)
+                py = _dense(qd, C1, q, sf[l, S_Y0 + 1], hs, th)
+                pz = _dense(qd, C2, q, sf[l, S_Y0 + 2], hs, th)
+                t = tau0 + th * hs if param == 0 else _dense(qd, C3, q, dep0, hs, th)
             _put(out_p, out_par, out_n, slot, px, py, pz, t, d * target)
             sf[l, S_LAST_S] = d * target
             si[l, I_M] = m + 1
@@ -438,7 +449,7 @@ def _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, 
     return True
 
 
-@njit(cache=True)
+@helper
 def _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1):
     """The step's error norm with h inside the squares: the value of the loop's formula (h
     outside), used only where (e / sc)² over- or underflows (speeds beyond about 1e±150)."""
@@ -479,7 +490,7 @@ def _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax, beta, 
     return hnext, errp, errpb
 
 
-@njit(cache=True, inline="always")
+@helper
 def _scaled_rms(fo, y, k, i, j):
     """RMS over the position of (k[i] - k[j]) (k[i] alone when j < 0) scaled by atol + rtol |y|,
     rescaled where the squares overflow (huge speeds)."""
@@ -501,7 +512,7 @@ def _initial_guess(fo, y, k):
     for a in range(3):
         d0 += (y[a] / (fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a]))) ** 2
     d0 = math.sqrt(d0 / 3.0)
-    d1 = _scaled_rms(fo, y, k, 0, -1)
+    d1 = _scaled_rms(fo, y, k, np.int64(0), np.int64(-1))  # typed (see helper)
     return (1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1), d1
 
 
@@ -509,7 +520,7 @@ def _initial_guess(fo, y, k):
 def _initial_step(fo, y, k, h0, d1, kexp, ok):
     """Second half: the step from the change of f over h0 (k[1] - k[0]); ``ok`` False when the
     second evaluation failed (NaN data)."""
-    d2 = _scaled_rms(fo, y, k, 1, 0) / h0
+    d2 = _scaled_rms(fo, y, k, np.int64(1), np.int64(0)) / h0
     if not ok or max(d1, d2) <= 1e-15 or not math.isfinite(d2):
         h1 = max(1e-6, h0 * 1e-3)
     else:
@@ -547,14 +558,15 @@ def _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, i_lastrej
     si[l, i_lastrej] = 1 if last_rej else 0
 
 
-# -- one line -------------------------------------------------------------------------------------
-@njit(cache=True)
-def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                  mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, setup_only):
-    """Advance line l, writing its vertices after the ``out_n[slot]`` already in its buffer row;
-    ``setup_only``: start (or resume) the line and suspend it before its first step (the
-    lock-step kernel in ``lanes.py`` takes it from there and hands it back)."""
-    k = np.empty((mi[0], 4))  # the stages
+# -- lines ------------------------------------------------------------------------------------
+@njit(cache=True, nogil=True, error_model="numpy")
+def _advance_range(start, stop, active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv,
+                   vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
+    """``advance`` for the slots start..stop-1 (lines ``active[start:stop]``), one after the
+    other; without the GIL, so that threads run ranges side by side (``threads.run_ranges``)."""
+    B = out_p.shape[1]
+    mode = io[P_PASS]
+    k = np.empty((mi[0], 4))  # the stages (scratch of one line, reused by the next)
     coef = np.empty((8, 3))  # the cached cell's polynomial
     cf = np.empty(9)  # its faces and 1 / widths
     ci = np.empty(3, np.int64)  # its index
@@ -565,20 +577,25 @@ def _advance_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, in
     dlo = np.empty(3)  # domain bounds
     dhi = np.empty(3)
     qd = np.empty((4, QMAX))  # dense coefficients
-    _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec, mc, ma, mb, me,
-              me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, setup_only, k, coef, cf, ci,
-              y, yt, ys, y1, dlo, dhi, qd)
+    for n in range(start, stop):
+        if mode != PASS_FINISH:
+            out_n[n] = 0
+        if mode != PASS_FINISH or si[active[n], I_STATUS] != DONE:
+            _run_line(active[n], n, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
+                      mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B,
+                      mode == PASS_SETUP, k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd)
 
 
 # Compiled without NRT, so without reference counting: every array here is the caller's.  With
 # NRT, each array handed to an inlined helper in the step loop cost an atomic increment and
 # decrement, a fifth of a plain rk4 step's time (measured); NRT cannot allocate, hence the
-# wrapper above
-@njit(cache=True, _nrt=False)
+# scratch arrays from _advance_range
+@njit(cache=True, _nrt=False, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec, mc, ma, mb,
               me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, setup_only,
               k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd):
     S, n_err, fs, adaptive, kexp, has_e2 = mi[0], mi[1], mi[2], mi[3] != 0, mi[4], mi[5] != 0
+    C0, C1, C2, C3 = np.int64(0), np.int64(1), np.int64(2), np.int64(3)  # typed (see helper)
     q = mp.shape[1]
     param, aware, emit = io[P_PARAM], io[P_AWARE] != 0, io[P_EMIT]
     max_steps = io[P_MAXSTEPS]
@@ -610,7 +627,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         sp = np.nan
         if inside:
             _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
-            sp = _f(px, py, pz, param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+            sp = _fc(px, py, pz, param, cf, coef, k, C0)
         if not (inside and math.isfinite(sp)):
             si[l, I_STATUS] = DONE
             si[l, I_REASON] = R_SEED
@@ -627,8 +644,8 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             h0, d1 = _initial_guess(fo, y, k)
             for a in range(3):
                 yt[a] = y[a] + d * h0 * k[0, a]
-            _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 1)
-            h = _initial_step(fo, y, k, h0, d1, kexp, True)
+            _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, C1)
+            h = _initial_step(fo, y, k, h0, d1, kexp, np.bool_(True))
         elif h <= 0.0:
             h = 1.0
         h = d * min(h, hmax)
@@ -679,7 +696,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
                         reason = R_OUT if res == 1 else R_NAN
                         stop = True
                         break
-                    _f(y[0], y[1], y[2], param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+                    _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
                 else:  # rounding may leave the point a hair outside its cell: put it back
                     y[a] = min(max(y[a], cf[a]), cf[3 + a])
             elif period[a] == 0.0 and (
@@ -714,9 +731,9 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         # gathers its own)
         if aware:
             _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + hs * k[0, 0],
-                           y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], -1)
+                           y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], np.int64(-1))
         else:
-            last = -1
+            last = np.int64(-1)
             for st in range(1, n_step):
                 if mc[st] != mc[st - 1]:
                     ch = mc[st] * hs
@@ -731,7 +748,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             if aware:
                 _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
             else:
-                _f(yt[0], yt[1], yt[2], param, False, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+                _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
         y1x = y[0]
         y1y = y[1]
         y1z = y[2]
@@ -819,7 +836,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
 
         # events inside the step, on the dense output
         ev = EV_NONE
-        ev_axis = -1
+        ev_axis = np.int64(-1)
         ev_face = 0.0
         need_face = False
         for a in range(3):
@@ -868,7 +885,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
                     ev_face = face
                     ev = EV_FACE
         if need_dep:
-            thd = _root(qd, 3, q, y[3], hs, d * lim_dep, d, 1.0)
+            thd = _root(qd, C3, q, y[3], hs, d * lim_dep, d, 1.0)
             if ev == EV_NONE or thd < th:
                 th = thd
                 ev = EV_DEPLIM
@@ -889,10 +906,10 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             for a in range(4):
                 k[0, a] = k[fs, a]
         else:
-            ynew0 = _dense(qd, 0, q, y[0], hs, th)
-            ynew1 = _dense(qd, 1, q, y[1], hs, th)
-            ynew2 = _dense(qd, 2, q, y[2], hs, th)
-            ydep = d * lim_dep if ev == EV_DEPLIM else _dense(qd, 3, q, y[3], hs, th)
+            ynew0 = _dense(qd, C0, q, y[0], hs, th)
+            ynew1 = _dense(qd, C1, q, y[1], hs, th)
+            ynew2 = _dense(qd, C2, q, y[2], hs, th)
+            ydep = d * lim_dep if ev == EV_DEPLIM else _dense(qd, C3, q, y[3], hs, th)
             y[0], y[1], y[2], y[3] = ynew0, ynew1, ynew2, ydep
             if ev == EV_FACE or ev == EV_BOUNDARY:
                 y[ev_axis] = ev_face
@@ -907,7 +924,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
                 elif res == 2:
                     reason = R_NAN
                 else:
-                    _f(y[0], y[1], y[2], param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+                    _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
         if ev == EV_BOUNDARY:
             reason = R_OUT
         elif ev == EV_DEPLIM:
@@ -953,23 +970,18 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
 
 
-@njit(cache=True, parallel=True)
 def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
             mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
     """Advance the lines ``active`` until each is done or has filled its B output slots.
 
     ``io[P_PASS]``: PASS_FULL that; PASS_SETUP start or resume each line and stop it before its
     first step; PASS_FINISH continue the lines not done, after the vertices already in the
-    buffers (lanes.py)."""
-    B = out_p.shape[1]
-    mode = io[P_PASS]
-    for n in prange(active.size):
-        if mode != PASS_FINISH:
-            out_n[n] = 0
-        if mode != PASS_FINISH or si[active[n], I_STATUS] != DONE:
-            _advance_line(active[n], n, seeds, dirs, spacings, phases, gx, gy, gz, period, inv,
-                          vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n,
-                          B, mode == PASS_SETUP)
+    buffers (lanes.py).  The lines are shared among numba's threads in ranges
+    (``threads.run_ranges``) rather than by a ``prange``: a parallel loop around the kernel
+    costs several seconds more to compile on every fresh machine."""
+    run_ranges(_advance_range, active.size, active, seeds, dirs, spacings, phases, gx, gy, gz,
+               period, inv, vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par,
+               out_n)
 
 
 @njit(cache=True, parallel=True)

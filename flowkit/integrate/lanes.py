@@ -1,6 +1,6 @@
 """Lines in lock-step: the numba backend's path for fixed-step methods on uniform grids.
 
-``kernel._advance_line`` follows one line at a time, and a line is a chain of dependent work:
+``kernel._run_line`` follows one line at a time, and a line is a chain of dependent work:
 the next stage's point needs this stage's velocity, which needs this stage's cell corners, which
 on a large field are often cache misses.  Here a thread advances ``W`` lines side by side, one
 stage of all of them at a time: the stage points of every lane, then a prefetch of every lane's
@@ -20,7 +20,7 @@ the domain and short of the dependent parameter's limit, room in the output buff
 that reaches the independent parameter's limit (``max_length`` in arc length, ``max_time`` in
 time) is clipped there, as the scalar kernel clips it, and ends the line.  At anything else — a
 boundary, NaN data, stagnation, a full buffer, ``max_steps`` — the lane stops before that step
-and ``kernel._advance_line`` finishes the line from the saved state.  Adaptive methods,
+and ``kernel._run_line`` finishes the line from the saved state.  Adaptive methods,
 cell-aware stepping, resampled output, periodic and non-uniform axes go to the scalar kernel
 whole (``eligible``).
 """
@@ -70,24 +70,18 @@ W = 32  # lines per group: enough cache misses in flight to cover the memory lat
 SMAX = 5  # stages of the eligible methods (rk4 and euler with their f(y1) stage)
 
 
-@njit(cache=True)
-def eligible(period, inv, ma, mb, mi, io):
+def eligible(period, inv, ma, mb, mi, io) -> bool:
     """True where the lock-step path applies: a fixed-step method of at most SMAX stages whose
     last stage evaluates f(y1) with y1's own weights (its stage point is y1), plain stepping, a
-    vertex per step, no stiffness test, every axis uniform and bounded."""
+    vertex per step, no stiffness test, every axis uniform and bounded.  Plain Python: it runs
+    once a launch, and ``advance`` compiles the lock-step only for launches that pass."""
     if mi[3] != 0 or mi[0] > SMAX or io[P_AWARE] != 0 or io[P_EMIT] != EMIT_STEPS \
             or io[P_STIFF] >= 0:
         return False
-    n_err, fs = mi[1], mi[2]
-    if fs != n_err:
+    n_err, fs = int(mi[1]), int(mi[2])
+    if fs != n_err or np.any(ma[fs, :n_err] != mb[:n_err]):
         return False
-    for m in range(n_err):
-        if ma[fs, m] != mb[m]:
-            return False
-    for a in range(3):
-        if period[a] != 0.0 or not (inv[a] > 0.0):
-            return False
-    return True
+    return bool(np.all(np.asarray(period) == 0.0) and np.all(np.asarray(inv) > 0.0))
 
 
 @njit(cache=True, inline="always")
@@ -213,7 +207,7 @@ def _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb):
 def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mi, fo, io, sf, si,
              out_p, out_par, out_n):
     """Advance the started lines ``active`` in groups of W as far as the lock-step goes; their
-    state goes back into ``sf``/``si`` for ``kernel._advance_line`` to continue.
+    state goes back into ``sf``/``si`` for ``kernel._run_line`` to continue.
 
     Every array the parallel loop touches is made before it and indexed by the group, none a
     view of another, and ``flat`` is the only view of the field: numba then marks them as not
@@ -334,10 +328,11 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mi, fo, io, sf
                 si[l, I_STATUS], si[l, I_REASON] = DONE, r_ind
 
 
-@njit(cache=True)
 def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
             mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
-    """``kernel.advance``, with lines in lock-step where ``eligible`` (same results)."""
+    """``kernel.advance``, with lines in lock-step where ``eligible`` (same results).  A Python
+    function, not a compiled one: a compiled dispatcher would compile the lock-step (a third of
+    the kernels' compile time) for every trace, where only fixed-step plain traces run it."""
     if eligible(period, inv, ma, mb, mi, io):
         io[P_PASS] = PASS_SETUP
         advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
@@ -345,6 +340,8 @@ def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
         lockstep(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
                  mc, ma, mi, fo, io, sf, si, out_p, out_par, out_n)
         io[P_PASS] = PASS_FINISH
-    advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                       mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
-    io[P_PASS] = PASS_FULL
+    try:
+        advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
+                           mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
+    finally:
+        io[P_PASS] = PASS_FULL

@@ -1,0 +1,79 @@
+"""Cold start: seconds to the first result in a fresh process with an empty compile cache.
+
+Each scenario runs in a fresh subprocess whose NUMBA_CACHE_DIR (and PoCL kernel cache) is a new
+empty folder: that is what a fresh machine, CI job, container or Dask worker pays.  Then the
+same scenario again in another fresh process on the now filled cache (warm start: imports,
+loading the compiled code, the work itself).  Prints a Markdown table: cold s, warm s, cold/warm.
+
+    .venv/bin/python benchmarks/bench_cold_start.py                 # every scenario
+    .venv/bin/python benchmarks/bench_cold_start.py default attributes
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+SETUP = """
+import time
+t0 = time.perf_counter()
+import numpy as np
+import flowkit
+from flowkit import datasets
+from flowkit.integrate import seeds
+field = datasets.hotroom()
+s = seeds.line((1, 1, 1), (9, 1, 9), 64)
+"""
+SCENARIOS = {
+    "default": "flowkit.trace(field, s, max_length=20)",
+    "attributes": "flowkit.trace(field, s, max_length=20, attributes=['speed', 'T'])",
+    "rk4": "flowkit.trace(field, s, max_length=20, method='rk4')",
+    "dop853": "flowkit.trace(field, s, max_length=20, method='dop853')",
+    "no_cell_aware": "flowkit.trace(field, s, max_length=20, cell_aware=False)",
+    "rk4_plain": "flowkit.trace(field, s, max_length=20, method='rk4', step=0.05, "
+                 "cell_aware=False)",
+    "rosenbrock": "flowkit.trace(field, s, max_length=20, method='ros34pw2')",
+    "pathlines": "from flowkit.integrate.pathlines import pathlines\n"
+                 "pathlines(str(datasets.hotroom_path()), s, max_time=200.0)",
+    "demo_scene": "from flowkit.cli.demo import scene_path\nfrom flowkit.scene import run_scene\n"
+                  "import tempfile\nout = tempfile.mkdtemp()\n"
+                  "run_scene(scene_path(), out_dir=out, cache_dir=out + '/cache')",
+    "opencl_pocl": "flowkit.trace(field, s, max_length=20, backend='opencl')",
+}
+
+
+def run(name: str, cache: Path) -> float:
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache / "numba"),
+               POCL_CACHE_DIR=str(cache / "pocl"), PYOPENCL_NO_CACHE="1")
+    code = SETUP + SCENARIOS[name] + "\nprint('seconds', time.perf_counter() - t0)\n"
+    t = time.perf_counter()
+    p = subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True,
+                       text=True, check=False)
+    wall = time.perf_counter() - t
+    if p.returncode != 0:
+        print(f"{name}: failed\n{p.stderr[-2000:]}", file=sys.stderr)
+        return float("nan")
+    return wall
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scenarios", nargs="*", default=list(SCENARIOS), choices=list(SCENARIOS))
+    args = ap.parse_args(argv)
+    print("| scenario | cold s | warm s | cold/warm |\n|---|---|---|---|")
+    for name in args.scenarios:
+        with tempfile.TemporaryDirectory(prefix="flowkit-cold-") as tmp:
+            cold = run(name, Path(tmp))
+            warm = run(name, Path(tmp))
+        print(f"| {name} | {cold:.1f} | {warm:.1f} | {cold / warm:.0f}x |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

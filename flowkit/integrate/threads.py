@@ -1,0 +1,57 @@
+"""Lines shared among threads: a compiled kernel that releases the GIL, run on ranges of lines.
+
+The integrators' per-line kernels are compiled ``nogil`` functions of a range of lines; this
+module hands the ranges to a pool of Python threads.  It replaces a ``prange`` loop around the
+kernel: numba's parallel loop costs several seconds of compilation on every fresh machine (its
+gufunc is built and optimised afresh around the whole inlined kernel), where a sequential
+``nogil`` loop costs well under one.  The ranges are small (about ``RANGES_PER_THREAD`` per
+thread) and taken by whichever thread is free, so long and short lines balance out.  The
+thread count is numba's (``NUMBA_NUM_THREADS``, ``numba.set_num_threads``).
+"""
+
+from __future__ import annotations
+
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from itertools import pairwise
+
+import numba
+
+RANGES_PER_THREAD = 8
+_pool: ThreadPoolExecutor | None = None
+_pool_threads = 0
+_lock = threading.Lock()
+
+
+def _executor(threads: int) -> ThreadPoolExecutor:
+    global _pool, _pool_threads
+    with _lock:
+        if _pool is None or _pool_threads != threads:
+            if _pool is not None:
+                _pool.shutdown(wait=False)
+            _pool = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="flowkit")
+            _pool_threads = threads
+        return _pool
+
+
+def ranges(n: int, threads: int) -> list[tuple[int, int]]:
+    """[start, stop) ranges covering 0..n-1, about RANGES_PER_THREAD per thread."""
+    parts = min(n, threads * RANGES_PER_THREAD)
+    if parts <= 1:
+        return [(0, n)] if n else []
+    edges = [n * i // parts for i in range(parts + 1)]
+    return [(a, b) for a, b in pairwise(edges) if b > a]
+
+
+def run_ranges(kernel, n: int, *args) -> None:
+    """``kernel(start, stop, *args)`` for ranges covering 0..n-1, on numba's thread count."""
+    threads = numba.get_num_threads()
+    parts = ranges(n, threads)
+    if threads <= 1 or len(parts) <= 1:
+        for a, b in parts:
+            kernel(a, b, *args)
+        return
+    pool = _executor(threads)
+    futures = [pool.submit(kernel, a, b, *args) for a, b in parts]
+    for f in futures:
+        f.result()  # re-raises a kernel's exception

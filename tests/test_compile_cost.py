@@ -1,0 +1,52 @@
+"""Compile cost cannot creep back silently: what a default trace compiles, counted.
+
+A fresh process with an empty numba cache runs the default trace (and the demo scene's options:
+both directions, resampled output, attributes); every compiled function of the kernel must
+then have exactly one specialization (a literal argument, an int64/uint64 loop index or a
+second dtype would add one: each costs seconds on every fresh machine), and the lock-step,
+which only fixed-step plain traces use, must not have been compiled at all.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+CODE = """
+import json, logging
+import numba
+import flowkit
+from flowkit import datasets
+from flowkit.integrate import kernel as K, lanes, seeds
+notices = []
+class H(logging.Handler):
+    def emit(self, record):
+        notices.append(record.getMessage())
+logging.getLogger("flowkit.compile").addHandler(H())
+logging.getLogger("flowkit.compile").setLevel(logging.INFO)
+f = datasets.hotroom()
+s = seeds.line((1, 1, 1), (9, 1, 9), 16)
+flowkit.trace(f, s, max_length=5)
+flowkit.trace(f, s, max_length=5, direction="both", spacing=0.1, rtol=1e-6)
+flowkit.trace(f, s, max_length=5, method="dop853")
+sigs = {n: [str(x) for x in d.signatures] for n, d in vars(K).items()
+        if isinstance(d, numba.core.registry.CPUDispatcher)}
+print(json.dumps({"sigs": sigs, "lockstep": len(lanes.lockstep.signatures), "notices": notices}))
+"""
+
+
+def test_default_trace_compiles_one_specialization_of_each_function(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    out = subprocess.run([sys.executable, "-c", CODE], env=env, capture_output=True, text=True,
+                         timeout=900, check=True).stdout
+    res = json.loads(out.strip().splitlines()[-1])
+    sigs = res["sigs"]
+    assert len(sigs["_run_line"]) == 1 and len(sigs["_advance_range"]) == 1
+    many = {n: s for n, s in sigs.items() if len(s) > 1}
+    assert not many, f"functions compiled more than once: {many}"
+    assert res["lockstep"] == 0  # not compiled for adaptive or cell-aware traces
+    # the compilation took seconds: the user was told, once
+    assert any("compiling the tracing kernel for this CPU, once" in m for m in res["notices"])
+    assert len(res["notices"]) == len(set(res["notices"]))
