@@ -7,6 +7,7 @@ compile_notice.install()  # say so when a kernel compiles for seconds (a fresh m
 if numba_cache.IN_WORKING_TREE:  # edited sources: no stale compiled kernels (see numba_cache)
     numba_cache.drop_stale()
 
+from . import datasets  # flowkit.datasets.hotroom() after a plain `import flowkit`
 from .fields import Field, Grid
 from .integrate.options import TraceOptions
 from .integrate.trace import trace, trace_to_file
@@ -15,5 +16,5 @@ from .lines import Lines
 
 __version__ = "0.1.0"
 
-__all__ = ["Field", "Grid", "Lines", "TraceOptions", "__version__", "read_lines", "trace",
+__all__ = ["Field", "Grid", "Lines", "TraceOptions", "__version__", "datasets", "read_lines", "trace",
            "trace_to_file", "write_lines"]
