@@ -16,5 +16,5 @@ from .lines import Lines
 
 __version__ = "0.1.0"
 
-__all__ = ["Field", "Grid", "Lines", "TraceOptions", "__version__", "datasets", "read_lines", "trace",
-           "trace_to_file", "write_lines"]
+__all__ = ["Field", "Grid", "Lines", "TraceOptions", "__version__", "datasets", "read_lines",
+           "trace", "trace_to_file", "write_lines"]

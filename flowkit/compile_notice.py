@@ -19,12 +19,12 @@ LOG = logging.getLogger("flowkit.compile")
 DELAY = 2.0
 # qualified name of a kernel -> (what it is, typical cold compile seconds)
 TYPICAL = {
-    "flowkit.integrate.kernel._advance_range": ("the tracing kernel", 35),
-    "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 30),
-    "flowkit.integrate.pathlines._advance": ("the pathline kernel", 60),
-    "flowkit.integrate.rosenbrock._advance": ("the Rosenbrock kernel", 30),
-    "flowkit.fields.interp.sample_vectors": ("the attribute sampler", 5),
-    "flowkit.fields.interp.sample_scalars": ("the attribute sampler", 5),
+    "flowkit.integrate.kernel._advance_range": ("the tracing kernel", 33),
+    "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 20),
+    "flowkit.integrate.pathlines._advance": ("the pathline kernel", 21),
+    "flowkit.integrate.rosenbrock._advance": ("the Rosenbrock kernel", 43),
+    "flowkit.fields.interp.sample_vectors": ("the attribute sampler", 8),
+    "flowkit.fields.interp.sample_scalars": ("the attribute sampler", 8),
 }
 
 

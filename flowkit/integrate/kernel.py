@@ -79,13 +79,14 @@ R_SEED = int(Reason.SEED_OUTSIDE)
 # The step loop's helpers.  numba's IR inlining (``inline="always"``) types and lowers a copy
 # of a helper at every call site: with every helper inlined, the kernel took minutes to compile
 # on a fresh machine.  It is kept for the helpers on the per-step path (evaluation, cell moves,
-# dense output, events: as calls they cost a fifth of a cell-aware step, measured) and the
+# dense output, events: as calls they cost about a quarter of a cell-aware step, measured) and the
 # single-caller ones; the others are ``helper``s, compiled once and called.  No NRT: they never
 # allocate, and reference counting of the arrays they take would cost more than their work.
 # numpy's error model: a division by zero gives inf or NaN, which the loop tests for (a zero
 # speed in arc-length mode), instead of an exception path per division.  Constants are passed
 # typed (np.int64(0)): a literal 0 or True argument compiles one more copy per value.
-helper = njit(cache=True, _nrt=False, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+helper = njit(cache=True, _nrt=False, error_model="numpy", no_cpython_wrapper=True,
+              no_cfunc_wrapper=True)
 
 
 # -- cells ----------------------------------------------------------------------------------
@@ -590,7 +591,8 @@ def _advance_range(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
 # NRT, each array handed to an inlined helper in the step loop cost an atomic increment and
 # decrement, a fifth of a plain rk4 step's time (measured); NRT cannot allocate, hence the
 # scratch arrays from _advance_range
-@njit(cache=True, _nrt=False, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@njit(cache=True, _nrt=False, error_model="numpy", no_cpython_wrapper=True,
+      no_cfunc_wrapper=True)
 def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec, mc, ma, mb,
               me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, setup_only,
               k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd):

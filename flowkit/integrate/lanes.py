@@ -81,7 +81,7 @@ def eligible(period, inv, ma, mb, mi, io) -> bool:
     n_err, fs = int(mi[1]), int(mi[2])
     if fs != n_err or np.any(ma[fs, :n_err] != mb[:n_err]):
         return False
-    return bool(np.all(np.asarray(period) == 0.0) and np.all(np.asarray(inv) > 0.0))
+    return bool(np.all(period == 0.0) and np.all(inv > 0.0))
 
 
 @njit(cache=True, inline="always")

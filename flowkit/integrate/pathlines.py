@@ -383,8 +383,9 @@ def _advance(active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t
     for n in prange(active.size):
         # the slot as int64: prange's index is int64 where numba types the loop and uint64 in
         # the body it lowers, which compiled _advance_line (and its step loop) twice
-        _advance_line(active[n], np.int64(n), seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
-                      t0, t1, mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B)
+        _advance_line(active[n], np.int64(n), seeds, release, d, goal, gx, gy, gz, period, inv,
+                      v0, v1, t0, t1, mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s,
+                      out_n, B)
 
 
 # -- the driver -------------------------------------------------------------------------------

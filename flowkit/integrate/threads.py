@@ -35,23 +35,19 @@ def _executor(threads: int) -> ThreadPoolExecutor:
 
 
 def ranges(n: int, threads: int) -> list[tuple[int, int]]:
-    """[start, stop) ranges covering 0..n-1, about RANGES_PER_THREAD per thread."""
+    """[start, stop) ranges covering 0..n-1 (n >= 1), about RANGES_PER_THREAD per thread."""
     parts = min(n, threads * RANGES_PER_THREAD)
-    if parts <= 1:
-        return [(0, n)] if n else []
-    edges = [n * i // parts for i in range(parts + 1)]
-    return [(a, b) for a, b in pairwise(edges) if b > a]
+    return list(pairwise(n * i // parts for i in range(parts + 1)))
 
 
 def run_ranges(kernel, n: int, *args) -> None:
     """``kernel(start, stop, *args)`` for ranges covering 0..n-1, on numba's thread count."""
     threads = numba.get_num_threads()
-    parts = ranges(n, threads)
-    if threads <= 1 or len(parts) <= 1:
-        for a, b in parts:
-            kernel(a, b, *args)
+    if threads <= 1 or n <= 1:
+        if n:
+            kernel(0, n, *args)
         return
     pool = _executor(threads)
-    futures = [pool.submit(kernel, a, b, *args) for a, b in parts]
+    futures = [pool.submit(kernel, a, b, *args) for a, b in ranges(n, threads)]
     for f in futures:
         f.result()  # re-raises a kernel's exception
