@@ -3,7 +3,7 @@
 A ``Style`` holds named line styles (``LineStyle``: ordered bands, band 0 innermost, mirrored
 about the centre line) plus scene settings (units, scale, background, antialiasing, camera).
 A style file with top-level ``[[bands]]`` defines the single line style ``"default"``; named
-styles live under ``[styles.NAME]`` so a transfer function (issue 6) can choose between them.
+styles live under ``[styles.NAME]`` so a transfer function can choose between them.
 
 Every value is checked here, once; errors name the file, the key path, the value and what is
 allowed. The renderer only ever turns this model into numbers (uniforms, textures) and into
