@@ -14,7 +14,9 @@ Algorithm (the OpenCL backend reproduces it step for step; docs/integrator.md sa
   output first meets a face; the coordinate is snapped onto the face, the line moves to the
   neighbour cell and the next step starts with a fresh k0 there.  Steps (fixed ones too) are
   also capped at ``cellfac`` times the straight-line time to the exit face so that little work
-  is cut away and no stage reaches far beyond the cell.
+  is cut away and no stage reaches far beyond the cell.  Adaptive methods may instead try a
+  step across faces (``P_CROSS``, below), kept when the error estimate and a bound on the faces'
+  kinks allow it, so that a looser tolerance costs fewer steps.
   Otherwise each stage looks up its own cell (cached while it stays in the same cell), using the
   boundary cell's polynomial, extended, for stages just outside a bounded domain.
 * Events inside an accepted step are found on the dense output (Illinois root finding in θ):
@@ -47,22 +49,30 @@ S_LO, S_HI = 11, 14  # cell faces, 3 each (cell-aware mode)
 S_Y0, S_TAU0, S_HS, S_TH = 17, 21, 22, 23  # pending step: y0 (+dep) (4), tau0, h, θ end
 S_LAST_S = 24  # arc length of the last emitted vertex
 S_Q = 25  # dense coefficients, 4 x QMAX
-NF = S_Q + 4 * QMAX
+S_HK = S_Q + 4 * QMAX  # the longest step across faces that the kink error allowed (crossing)
+NF = S_HK + 1
 # int state (si) columns
 I_STATUS, I_REASON, I_NACC, I_NREJ, I_CELL, I_LASTREJ, I_PEND, I_M, I_FINAL, I_STIFF = (
     0, 1, 2, 3, 4, 7, 8, 9, 10, 11)
-NI = 12
+I_NCROSS, I_KFAIL, I_KWAIT = 12, 13, 14  # crossing: steps that crossed faces, failed tries
+NI = 15  # in a row, faces to wait before the next try
 NEW, RUNNING, DONE = 0, 1, 2
 # float options (fo)
 O_RTOL, O_ATOL, O_SAFETY, O_FACMIN, O_FACMAX, O_BETA = 0, 3, 6, 7, 8, 9
 O_H0, O_HMIN, O_HMAX, O_MAXLEN, O_MAXTIME, O_STAG, O_CELLFAC = 10, 11, 12, 13, 14, 15, 16
 NFO = 17
 # int options (io)
-P_MAXSTEPS, P_PARAM, P_AWARE, P_EMIT, P_STIFF, P_PASS = 0, 1, 2, 3, 4, 5
-NIO = 6  # P_STIFF: stage index of the stiffness pair (dopri5: 5, c = 1 like f(y1)); -1 none
+P_MAXSTEPS, P_PARAM, P_AWARE, P_EMIT, P_STIFF, P_PASS, P_CROSS = 0, 1, 2, 3, 4, 5, 6
+NIO = 7  # P_STIFF: stage index of the stiffness pair (dopri5: 5, c = 1 like f(y1)); -1 none
 # P_PASS: what ``advance`` does (lanes.py runs a launch as a setup and a finishing pass around
 # its lock-step; a flag in io, not an argument, so that _advance_line is compiled once)
 PASS_FULL, PASS_SETUP, PASS_FINISH = 0, 1, 2
+# P_CROSS (cell-aware, adaptive): a step the controller wants longer than the cell cap is tried
+# across faces, each stage in its own cell, and kept when its error estimate passes; otherwise
+# the step ends on the face as usual.  The kink at a face makes the error of such a step grow
+# like h^2, so the longest crossing step has its own controller (S_HK): shrunk by a rejected
+# crossing, grown on every face the line steps through.
+KINK_CELLS, KINK_GROW, KINK_SHRINK_MIN = 3.0, 1.15, 0.1
 EMIT_STEPS, EMIT_SPACING, EMIT_FINAL = 0, 1, 2
 # events
 EV_NONE, EV_FACE, EV_BOUNDARY, EV_DEPLIM = 0, 1, 2, 3
@@ -231,6 +241,17 @@ def _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef):
     cf[5] = hi
     cf[8] = 1.0 / _width(gz, period[2], i)
     return _gather(vec, ci, coef)
+
+
+@helper
+def _copy_cell(ci, cf, coef, ci_to, cf_to, coef_to):
+    for a in range(3):
+        ci_to[a] = ci[a]
+    for a in range(9):
+        cf_to[a] = cf[a]
+    for m in range(8):
+        for a in range(3):
+            coef_to[m, a] = coef[m, a]
 
 
 @njit(cache=True, inline="always")
@@ -567,7 +588,7 @@ def _advance_range(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
     other; without the GIL, so that threads run ranges side by side (``threads.run_ranges``)."""
     B = out_p.shape[1]
     mode = io[P_PASS]
-    k = np.empty((mi[0], 4))  # the stages (scratch of one line, reused by the next)
+    k = np.empty((mi[0] + 1, 4))  # the stages, and a spare row (scratch of one line)
     coef = np.empty((8, 3))  # the cached cell's polynomial
     cf = np.empty(9)  # its faces and 1 / widths
     ci = np.empty(3, np.int64)  # its index
@@ -578,13 +599,17 @@ def _advance_range(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
     dlo = np.empty(3)  # domain bounds
     dhi = np.empty(3)
     qd = np.empty((4, QMAX))  # dense coefficients
+    coef0 = np.empty((8, 3))  # the cell a crossing step started in, restored when it fails
+    cf0 = np.empty(9)
+    ci0 = np.empty(3, np.int64)
     for n in range(start, stop):
         if mode != PASS_FINISH:
             out_n[n] = 0
         if mode != PASS_FINISH or si[active[n], I_STATUS] != DONE:
             _run_line(active[n], n, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
                       mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B,
-                      mode == PASS_SETUP, k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd)
+                      mode == PASS_SETUP, k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd,
+                      coef0, cf0, ci0)
 
 
 # Compiled without NRT, so without reference counting: every array here is the caller's.  With
@@ -595,13 +620,14 @@ def _advance_range(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
       no_cfunc_wrapper=True)
 def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec, mc, ma, mb,
               me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, setup_only,
-              k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd):
+              k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd, coef0, cf0, ci0):
     S, n_err, fs, adaptive, kexp, has_e2 = mi[0], mi[1], mi[2], mi[3] != 0, mi[4], mi[5] != 0
     C0, C1, C2, C3 = np.int64(0), np.int64(1), np.int64(2), np.int64(3)  # typed (see helper)
     q = mp.shape[1]
     param, aware, emit = io[P_PARAM], io[P_AWARE] != 0, io[P_EMIT]
     max_steps = io[P_MAXSTEPS]
     st_stiff = io[P_STIFF]
+    cross = aware and adaptive and io[P_CROSS] != 0
     safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
     hmin, hmax, cellfac, stag = fo[O_HMIN], fo[O_HMAX], fo[O_CELLFAC], fo[O_STAG]
     lim_ind = fo[O_MAXTIME] if param == 0 else fo[O_MAXLEN]
@@ -651,6 +677,10 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         elif h <= 0.0:
             h = 1.0
         h = d * min(h, hmax)
+        hk = abs(h)
+        n_cross = 0
+        kfail = 0
+        kwait = 0
         si[l, I_STATUS] = RUNNING
         sf[l, S_LAST_S] = -np.inf
         si[l, I_M] = 0
@@ -660,6 +690,8 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             si[l, I_M] = 1 if emit == EMIT_SPACING else 0
     else:
         tau, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, I_LASTREJ, beta)
+        hk = sf[l, S_HK]
+        n_cross, kfail, kwait = si[l, I_NCROSS], si[l, I_KFAIL], si[l, I_KWAIT]
         if aware:
             for a in range(3):
                 ci[a] = si[l, I_CELL + a]
@@ -709,10 +741,11 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         if stop:
             break
 
-        # step size: controller, cell cap, parameter limit
+        # step size: controller, cell cap (or a step across faces), parameter limit
         hs = h
+        long = False
+        t_exit = np.inf
         if aware:  # (fixed steps too: their stages would extend the cell's polynomial far out)
-            t_exit = np.inf
             for a in range(3):
                 mv = d * k[0, a]
                 if mv > 0.0:
@@ -721,7 +754,13 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
                     t_exit = min(t_exit, (y[a] - cf[a]) / -mv)
             cap = cellfac * t_exit
             if cap > 0.0 and abs(hs) > cap:
-                hs = d * cap
+                if cross and kwait == 0 and hk > KINK_CELLS * cap:
+                    hs = d * min(abs(hs), hk)
+                    long = True
+                else:
+                    hs = d * cap
+                    hk *= KINK_GROW
+                    kwait = max(kwait - 1, 0)
         hit_lim = False
         rem = lim_ind - abs(tau)
         if abs(hs) >= rem:
@@ -731,7 +770,10 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         # latency overlaps the arithmetic instead of stalling a dependent chain: cell-aware, the
         # end's (gathered at the face); plain, each stage's (a step spans cells, each stage
         # gathers its own)
-        if aware:
+        inc = aware and not long  # every stage from the cell the step starts in
+        if long:
+            _copy_cell(ci, cf, coef, ci0, cf0, coef0)
+        if inc:
             _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + hs * k[0, 0],
                            y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], np.int64(-1))
         else:
@@ -747,10 +789,10 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             _stage_point(ma, k, st, y, hs, yt)
             if st == st_stiff:
                 ys[0], ys[1], ys[2] = yt[0], yt[1], yt[2]
-            if aware:
+            if inc:
                 _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
             else:
-                _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+                _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
         y1x = y[0]
         y1y = y[1]
         y1z = y[2]
@@ -796,6 +838,38 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
                 err = _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1)
             if not math.isfinite(err):
                 finite = False
+        st_done = n_err  # stages computed so far
+        if long and finite:
+            # the kink bound: the field at y1 against the start cell's polynomial there, times
+            # the time past the first face, bounds what the faces' kinks moved y1 (the embedded
+            # estimate, blind to kinks, sees a fraction of it)
+            for st in range(n_err, fs + 1):
+                _stage_point(ma, k, st, y, hs, yt)
+                _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef,
+                   k, st)
+            st_done = fs + 1
+            t_past = abs(hs) - t_exit
+            _fc(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
+            ek = 0.0
+            for a in range(3):
+                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
+                ek += ((k[S, a] - k[fs, a]) * t_past / sc) ** 2
+            ek = math.sqrt(ek / 3.0)
+            if math.isfinite(ek):
+                err = max(err, ek)
+            else:
+                finite = False
+        if long and not (finite and err <= 1.0):
+            # the kink at the faces costs more than the tolerance (or NaN data lies beyond, y1
+            # included: f(y1) entered the kink bound):
+            # back to the cell the step started in, to end this step on its face
+            _copy_cell(ci0, cf0, coef0, ci, cf, coef)
+            n_rej += 1
+            hk = abs(hs) * (max(KINK_SHRINK_MIN, safety / math.sqrt(err)) if finite
+                            else KINK_SHRINK_MIN)
+            kfail = min(kfail + 1, 10)
+            kwait = (1 << kfail) - 1
+            continue
         if not finite:
             # a stage met NaN data (or a zero speed in arc-length mode): retry shorter
             n_rej += 1
@@ -815,9 +889,9 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             continue
 
         # accepted: the remaining stages up to f(y1)
-        for st in range(n_err, fs + 1):
+        for st in range(st_done, fs + 1):
             _stage_point(ma, k, st, y, hs, yt)
-            _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+            _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
         if not math.isfinite(k[fs, 0] + k[fs, 1] + k[fs, 2] + k[fs, 3]):
             n_rej += 1  # y1 itself lies in a NaN cell
             h = 0.25 * hs
@@ -843,7 +917,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         need_face = False
         for a in range(3):
             v1 = y1x if a == 0 else (y1y if a == 1 else y1z)
-            if aware:
+            if inc:
                 if v1 < cf[a] or v1 > cf[3 + a]:
                     need_face = True
             elif period[a] == 0.0 and (v1 < dlo[a] or v1 > dhi[a]):
@@ -852,7 +926,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         if need_face or need_dep or emit == EMIT_SPACING:
             for st in range(fs + 1, S):  # stages only the dense output uses
                 _stage_point(ma, k, st, y, hs, yt)
-                _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+                _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
             for a in range(4):
                 for j in range(q):
                     acc = 0.0
@@ -867,7 +941,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         if need_face:
             for a in range(3):
                 v1 = y1x if a == 0 else (y1y if a == 1 else y1z)
-                if aware:
+                if inc:
                     lo_a, hi_a = cf[a], cf[3 + a]
                 elif period[a] == 0.0:
                     lo_a, hi_a = dlo[a], dhi[a]
@@ -891,7 +965,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             if ev == EV_NONE or thd < th:
                 th = thd
                 ev = EV_DEPLIM
-        if ev == EV_FACE and not aware:
+        if ev == EV_FACE and not inc:
             ev = EV_BOUNDARY
         # commit the step
         n_acc += 1
@@ -907,6 +981,14 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             tau = d * lim_ind if hit_lim else tau + hs
             for a in range(4):
                 k[0, a] = k[fs, a]
+            if long:  # the line's cell is now the one y1 lies in
+                n_cross += 1
+                kfail = 0
+                hk = abs(hs) * (facmax if err == 0.0 else min(facmax, safety / math.sqrt(err)))
+                if not (cf[0] <= y[0] <= cf[3] and cf[1] <= y[1] <= cf[4]
+                        and cf[2] <= y[2] <= cf[5]):
+                    _relocate(gx, gy, gz, period, inv, vec, y[0], y[1], y[2], ci, cf, coef)
+                    _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
         else:
             ynew0 = _dense(qd, C0, q, y[0], hs, th)
             ynew1 = _dense(qd, C1, q, y[1], hs, th)
@@ -959,6 +1041,8 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
 
     # save the state
     _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, I_LASTREJ)
+    sf[l, S_HK] = hk
+    si[l, I_NCROSS], si[l, I_KFAIL], si[l, I_KWAIT] = n_cross, kfail, kwait
     for a in range(3):
         sf[l, S_LO + a] = cf[a]
         sf[l, S_HI + a] = cf[3 + a]

@@ -40,6 +40,8 @@ class TraceOptions:
     direction    forward, backward or both (one line through the seed)
     parameter    time (dx/dt = v) or arc_length (dx/ds = v / |v|)
     cell_aware   steps end on the faces of the cell they start in (see docs/integrator.md)
+    cross_faces  cell-aware adaptive steps may cross faces where their error estimate allows,
+                 so that a looser tolerance costs less; False: every step ends on a face
     stagnation   absolute speed below which a line stops; None: stagnation_rel * typical speed
     spacing      resample vertices every `spacing` of arc length (dense output)
     count        resample each line to `count` vertices evenly spaced in arc length
@@ -60,6 +62,7 @@ class TraceOptions:
     direction: str = "forward"
     parameter: str = "time"
     cell_aware: bool = True
+    cross_faces: bool = True
     stagnation: float | None = None
     stagnation_rel: float = 1e-6
     spacing: float | None = None

@@ -102,7 +102,8 @@ def _attrs(field: Field, opts: TraceOptions) -> dict:
     return {
         "method": opts.method, "rtol": str(opts.rtol), "atol": str(opts.atol),
         "parameter": opts.parameter, "direction": opts.direction,
-        "cell_aware": int(opts.cell_aware), "max_length": opts.max_length, "max_time": opts.max_time,
+        "cell_aware": int(opts.cell_aware),
+        "cross_faces": int(opts.cross_faces), "max_length": opts.max_length, "max_time": opts.max_time,
         "max_steps": opts.max_steps, "source": str(field.source), "reason_names": ",".join(REASON_NAMES),
     }
 
@@ -191,6 +192,7 @@ class _Setup:
         io[K.P_MAXSTEPS] = opts.max_steps
         io[K.P_PARAM] = 1 if opts.parameter == "arc_length" else 0
         io[K.P_AWARE] = int(opts.cell_aware)
+        io[K.P_CROSS] = int(opts.cross_faces)
         # Hairer & Wanner's stiffness test needs DP5's stage pair at c = 1 (stages 5 and 6)
         io[K.P_STIFF] = 5 if m.name == "dopri5" else -1
         self.io = io
@@ -322,6 +324,7 @@ def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> L
     cols = {"reason": si[:, K.I_REASON].astype(np.int8),
             "n_accepted": si[:, K.I_NACC].astype(np.int32),
             "n_rejected": si[:, K.I_NREJ].astype(np.int32),
+            "n_crossing": si[:, K.I_NCROSS].astype(np.int32),
             "stiff": ((si[:, K.I_STIFF] >> 16) & 1).astype(np.int8)}  # stiffness.is_stiff's bit
     lines = _assemble(field, opts, seeds, id0, pts, t, s, owner, cols, setup.point_data)
     if opts.method == "auto":

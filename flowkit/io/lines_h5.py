@@ -59,6 +59,7 @@ _LONG_NAMES = {
     "vorticity_magnitude": "vorticity magnitude", "distance_to_seed": "distance to the seed",
     "seed_id": "seed index", "reason": "why the line stopped",
     "n_accepted": "accepted integration steps", "n_rejected": "rejected integration steps",
+    "n_crossing": "accepted steps that crossed cell faces",
 }
 _COMPRESSION = {"gzip": {"compression": "gzip", "compression_opts": 4, "shuffle": True},
                 "lzf": {"compression": "lzf", "shuffle": True}, None: {}}

@@ -175,6 +175,8 @@ class OpenCLAdvance:
         flags = codegen.Flags(
             method=_method_name(arrays), tableau=codegen.tableau_key(arrays), real=self.real,
             aware=bool(io[K.P_AWARE]), periodic=bool(np.any(np.asarray(period) > 0)),
+            # crossing bounds the kinks with the start cell's polynomial, which an image lacks
+            cross=bool(io[K.P_AWARE] and io[K.P_CROSS] and mi[3] and not self.image),
             uniform=bool(np.all(np.asarray(inv) > 0)), image=self.image,
             attrs=plan.attrs, scalars=len(plan.scalars))
         knl = codegen.kernel(self.ctx, self.device, flags, arrays)

@@ -31,6 +31,7 @@ class Flags:
     tableau: bytes  # the method's kernel arrays, so that a changed tableau recompiles
     real: str = "double"  # or "float"
     aware: bool = True
+    cross: bool = False  # cell-aware adaptive steps may cross faces (kernel.P_CROSS)
     periodic: bool = False  # any periodic axis: wrap code included
     uniform: bool = True  # all axes uniform: O(1) cell lookup instead of a binary search
     image: bool = False  # field from an image3d with hardware linear filtering
@@ -86,18 +87,19 @@ def render(flags: Flags, arrays) -> str:
 
     def stage_code(st):
         return (f"for (int a = 0; a < 3; a++) yt[a] = y[a] + hs * ({wsum(terms(a[st, :st]))});\n"
-                f"        rhs(yt[0], yt[1], yt[2], param, aware, &G, &C, k, {st} IMGA);")
+                f"        rhs(yt[0], yt[1], yt[2], param, inc, &G, &C, k, {st} IMGA);")
 
-    consts = SimpleNamespace(**{n: int(getattr(K, n)) for n in dir(K) if n.isupper()
-                                and isinstance(getattr(K, n), int)})
+    consts = SimpleNamespace(**{n: getattr(K, n) for n in dir(K) if n.isupper()
+                                and isinstance(getattr(K, n), (int, float))})
     return _env().get_template("advance.cl.j2").render(
-        method=flags.method, real=real, aware=flags.aware, periodic=flags.periodic,
+        method=flags.method, real=real, aware=flags.aware, cross=flags.cross, periodic=flags.periodic,
         uniform=flags.uniform, image=flags.image, attrs=flags.attrs, n_scalars=flags.scalars,
         S=S, q=q, QMAX=K.QMAX, NF=K.NF, NI=K.NI,
         c=consts, kexp=kexp, adaptive=bool(adaptive), has_e2=bool(has_e2), fs=fs,
         pre_stages=range(1, n_err), post_stages=range(n_err, fs + 1), dense_stages=range(fs + 1, S),
         b_terms=terms(b[:n_err]), e_terms=terms(e[:n_err]), e2_terms=terms(e2[:n_err]),
-        p_terms=[terms(p[:, j]) for j in range(q)], wsum=wsum, stage_code=stage_code)
+        p_terms=[terms(p[:, j]) for j in range(q)], wsum=wsum, stage_code=stage_code,
+        lit=lambda x: literal(x, real))
 
 
 # strict IEEE: no contraction into FMA (also set by the pragma), correctly rounded float32 / and sqrt
