@@ -135,9 +135,12 @@ def _all_runs(field, seeds, problem, skip, scipy_seeds, threads):
     L = problem.length
     if "flowkit" not in skip:
         peers.flowkit_run(field, seeds[:4], L, rtol=1e-3)  # compile (cached) outside the timing
-        for ca, tols in ((True, FLOWKIT_TOLS), (False, PLAIN_TOLS)):
+        # the default (cell-aware, steps across faces where the kink bound allows), every step
+        # ending on a face, and plain
+        for kw, tols in (({}, FLOWKIT_TOLS), ({"cross_faces": False}, FLOWKIT_TOLS),
+                         ({"cell_aware": False}, PLAIN_TOLS)):
             for tol in tols:
-                yield _job(peers.flowkit_run, field, seeds, L, rtol=tol, cell_aware=ca)
+                yield _job(peers.flowkit_run, field, seeds, L, rtol=tol, **kw)
         for h in FLOWKIT_RK4:
             yield _job(peers.flowkit_run, field, seeds, L, method="rk4", step=h,
                        cell_aware=False)
@@ -215,6 +218,7 @@ def plot(rows, path):
         kind = r["setting"].split()[0]
         if r["tool"] == "flowkit":
             kind += " cell-aware" if "cell_aware=on" in r["setting"] else " plain"
+            kind += " faces only" if "cross_faces=off" in r["setting"] else ""
         if "smp=" in r["setting"]:
             kind += " " + r["setting"].split()[-1]
         groups.setdefault(f"{r['tool']} {kind}", []).append(r)

@@ -44,6 +44,8 @@ def flowkit_run(field: Field, seeds, length, method="dopri5", rtol=1e-6, atol=No
     # a fixed-step method is named by its step, not a tolerance
     tol = f"tol={rtol:.0e}" if get_method(method).adaptive else f"step={options.get('step')}"
     name = f"{method} {tol} cell_aware={'on' if cell_aware else 'off'}"
+    if cell_aware and not options.get("cross_faces", True):
+        name += " cross_faces=off"
     return Run("flowkit", name, ends, lines.n_points, t.wall, t.cpu, len(seeds),
                notes=[f"numba threads {numba.get_num_threads()}"])
 

@@ -868,7 +868,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             hk = abs(hs) * (max(KINK_SHRINK_MIN, safety / math.sqrt(err)) if finite
                             else KINK_SHRINK_MIN)
             kfail = min(kfail + 1, 10)
-            kwait = (1 << kfail) - 1
+            kwait = (1 << (2 * kfail - 2)) - 1
             continue
         if not finite:
             # a stage met NaN data (or a zero speed in arc-length mode): retry shorter
