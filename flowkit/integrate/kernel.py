@@ -838,27 +838,26 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
                 err = _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1)
             if not math.isfinite(err):
                 finite = False
-        st_done = n_err  # stages computed so far
-        if long and finite:
-            # the kink bound: the field at y1 against the start cell's polynomial there, times
-            # the time past the first face, bounds what the faces' kinks moved y1 (the embedded
-            # estimate, blind to kinks, sees a fraction of it)
+        if finite and not (adaptive and err > 1.0):  # the remaining stages up to f(y1)
             for st in range(n_err, fs + 1):
                 _stage_point(ma, k, st, y, hs, yt)
                 _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef,
                    k, st)
-            st_done = fs + 1
-            t_past = abs(hs) - t_exit
-            _fc(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
-            ek = 0.0
-            for a in range(3):
-                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
-                ek += ((k[S, a] - k[fs, a]) * t_past / sc) ** 2
-            ek = math.sqrt(ek / 3.0)
-            if math.isfinite(ek):
-                err = max(err, ek)
-            else:
-                finite = False
+            if long:
+                # the kink bound: the field at y1 against the start cell's polynomial there,
+                # times the time past the first face, bounds what the faces' kinks moved y1
+                # (the embedded estimate, blind to kinks, sees a fraction of it)
+                t_past = abs(hs) - t_exit
+                _fc(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
+                ek = 0.0
+                for a in range(3):
+                    sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
+                    ek += ((k[S, a] - k[fs, a]) * t_past / sc) ** 2
+                ek = math.sqrt(ek / 3.0)
+                if math.isfinite(ek):
+                    err = max(err, ek)
+                else:
+                    finite = False
         if long and not (finite and err <= 1.0):
             # the kink at the faces costs more than the tolerance (or NaN data lies beyond, y1
             # included: f(y1) entered the kink bound):
@@ -888,10 +887,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
                 break
             continue
 
-        # accepted: the remaining stages up to f(y1)
-        for st in range(st_done, fs + 1):
-            _stage_point(ma, k, st, y, hs, yt)
-            _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+        # accepted
         if not math.isfinite(k[fs, 0] + k[fs, 1] + k[fs, 2] + k[fs, 3]):
             n_rej += 1  # y1 itself lies in a NaN cell
             h = 0.25 * hs
