@@ -99,7 +99,7 @@ def lines_file(tmp_path_factory):
     lines = Lines(np.c_[2 * t - 1, 0 * t, 0 * t], [0, n], {"speed": t, "temp": 1.0 - t},
                   {"seed_id": np.array([7]), "reason": np.array([Reason.MAX_LENGTH], np.int8),
                    "reason_backward": np.array([Reason.OUT_OF_DOMAIN], np.int8)},
-                  {"direction": "both", "length_units": "m", "domain_bounds": np.array(DOMAIN)})
+                  {"direction": "both", "length_units": "m", "domain_bounds": " ".join(str(v) for r in DOMAIN for v in r)})
     path = write_lines(lines, tmp_path_factory.mktemp("lines") / "line.h5")
     with h5py.File(path, "r+") as f:
         f["VTKHDF/PointData/speed"].attrs["units"] = "m/s"
@@ -374,10 +374,11 @@ def test_benchmark_runs(display, monkeypatch, capsys):
     import bench_viewer
 
     assert bench_viewer.main(["--lines", "10", "--vertices", "40", "--repeat", "1",
-                              "--size", "200x150"]) == 0
+                              "--size", "200x150", "--probes", "5"]) == 0
     out = capsys.readouterr().out
     for kind in bench_viewer.KINDS:  # each timed change asserted its update kind in the run
         assert kind in out
+    assert f"{bench_viewer.PROBE}: best" in out and "over 5 random cursor positions" in out
 
 
 def test_run_loop_until_escape(display, tmp_path):

@@ -76,6 +76,19 @@ def unreadable(lines: Lines, style: Style) -> str | None:
     return None
 
 
+def domain_bounds(lines: Lines) -> np.ndarray | None:
+    """The field's box (3, 2) that the lines were traced in, where their file records it
+    (``domain_bounds``: six numbers, as text or an array), else None."""
+    value = lines.attrs.get("domain_bounds")
+    if value is None:
+        return None
+    try:
+        b = np.asarray(value.split() if isinstance(value, str) else value, float).reshape(3, 2)
+    except ValueError:
+        return None  # not six numbers: the lines' own box instead
+    return b if np.all(np.isfinite(b)) and np.all(b[:, 1] >= b[:, 0]) else None
+
+
 def _init_glfw() -> None:
     errors = []
     glfw.set_error_callback(lambda code, text: errors.append(text.decode(errors="replace")
@@ -120,9 +133,9 @@ class Viewer:
         imgui.backends.opengl3_init("#version 330")
         self.renderer = LineRenderer(lines, self.ctx, tolerance=tolerance)
         self.overlays = OverlayLayer(self.ctx)
-        domain = lines.attrs.get("domain_bounds")  # the field's box, where the file records it
-        self.outline_bounds = (np.asarray(domain, float).reshape(3, 2) if domain is not None
-                               else self.renderer.bounds)
+        self.outline_bounds = domain_bounds(lines)
+        if self.outline_bounds is None:
+            self.outline_bounds = self.renderer.bounds
         self.outline = Outline(self.ctx, self.outline_bounds)
         self.picker = Picker(lines.points)  # its index builds in a thread
         self.history = History()

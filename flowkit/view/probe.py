@@ -10,6 +10,7 @@ not the number of vertices (benchmarks/bench_viewer.py times it on 2.5M vertices
 from __future__ import annotations
 
 import threading
+import time
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -26,11 +27,14 @@ class Picker:
         finite = np.all(np.isfinite(self.points), axis=1)
         self._index = np.flatnonzero(finite)  # tree rows -> vertex numbers
         self._tree: cKDTree | None = None
+        self.build_time: float | None = None  # s
         self._thread = threading.Thread(target=self._build, daemon=True)
         self._thread.start()
 
     def _build(self) -> None:
+        t0 = time.perf_counter()
         self._tree = cKDTree(self.points[self._index], balanced_tree=False, compact_nodes=False)
+        self.build_time = time.perf_counter() - t0
 
     @property
     def ready(self) -> bool:
@@ -65,18 +69,18 @@ class Picker:
         t0, t1 = _clip(a, b - a, bounds, pad)
         if t0 is None:
             return None
-        # balls along the ray, spaced by the smallest local pick radius (at most MAX_BALLS:
-        # then farther apart), each 1.5 x its local radius or the spacing: they cover the
-        # cylinder of the pick radius about the ray
+        # balls along the ray, spaced by the smallest local pick radius r (at most MAX_BALLS:
+        # then farther apart), each of radius 1.12 r (> sqrt(1 + 1/4) r) or the spacing: they
+        # cover the cylinder of the pick radius about the ray
         seg = (b - a) * (t1 - t0)
         a = a + t0 * (b - a)
         length = float(np.linalg.norm(seg))
         r_min = float(world_radius(np.array([a, a + seg])).min())
         n = int(min(max(np.ceil(length / max(r_min, 1e-300)), 1), MAX_BALLS)) + 1
         centres = a + np.linspace(0.0, 1.0, n)[:, None] * seg
-        radii = np.maximum(1.5 * world_radius(centres), length / (n - 1))
+        radii = np.maximum(1.12 * world_radius(centres), length / (n - 1))
         found = self.tree.query_ball_point(centres, radii, return_sorted=False)
-        cand = np.unique(np.concatenate([np.asarray(f, np.int64) for f in found]))
+        cand = np.concatenate([np.asarray(f, np.int64) for f in found])  # repeats are harmless
         if cand.size == 0:
             return None
         vert = self._index[cand]
