@@ -123,7 +123,7 @@ def measure(lines, size, repeat: int, probes: int) -> dict[str, list[float]]:
                 last = v.updates.copy()
                 timed("camera (orbit)", lambda: v.on_drag(2.0, 0.0), v.last_update)
                 assert v.updates == last
-            info = {"vertices drawn": v.renderer.n_drawn, "size": v.size,
+            info = {"vertices drawn": v.renderer.n_drawn, "size": v.size, "scene": v.scene_size,
                     "renderer": v.ctx.info["GL_RENDERER"]}
             t0 = time.perf_counter()
             v.picker.tree  # noqa: B018  (waits for the build, started with the window)
@@ -156,7 +156,8 @@ def main(argv=None) -> int:
         times, info = measure(lines, size, a.repeat, a.probes)
     load = os.getloadavg()
     print(f"viewer: {a.lines} lines x {a.vertices} vertices = {lines.n_points} vertices, window "
-          f"{info['size'][0]}x{info['size'][1]}, {info['renderer']}, "
+          f"{info['size'][0]}x{info['size'][1]} (scene {info['scene'][0]}x{info['scene'][1]} "
+          f"right of the panel), {info['renderer']}, "
           f"{info['vertices drawn']} vertices drawn (level of detail)")
     print(f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} cores; "
           f"{a.repeat} repeats, interleaved")

@@ -236,7 +236,6 @@ def test_file_watch(tmp_path):
 def test_cli_view_errors(tmp_path):
     """Without a display the CLI says what to do in one line; bad files are named."""
     from flowkit.io.lines_h5 import write_lines
-    from flowkit.lines import Lines
 
     lines = tmp_path / "l.h5"
     write_lines(Lines(np.zeros((2, 3)) + [[0, 0, 0], [1, 0, 0]], [0, 2]), lines)
@@ -256,7 +255,6 @@ def test_cli_view_errors(tmp_path):
 
 def test_viewer_refuses_a_style_the_lines_cannot_show(tmp_path):
     """Checked before any window opens: the file, the attribute and what there is."""
-    from flowkit.lines import Lines
     from flowkit.view.app import Viewer
 
     style = tmp_path / "s.toml"
