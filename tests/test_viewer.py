@@ -340,9 +340,12 @@ def test_colour_key_cycles_attribute(fresh):
     cols = np.flatnonzero(lit(img[row:row + 1]).any(axis=0))
     left, right = img[row, cols.min() + 2, 0], img[row, cols.max() - 2, 0]
     assert left < 25 and right > 230  # speed = x: dark to bright
+    readout = fresh.overlays.overlays["colour"].image  # the attribute and range shown
     fresh.on_key(glfw.KEY_C)
     fresh.step()
     assert fresh.style.line_style.bands[0].color.attribute == "temp"
+    assert fresh.overlays.overlays["colour"].image is not readout
+    assert not np.array_equal(fresh.overlays.overlays["colour"].image[:, :60], readout[:, :60])
     img = scene(fresh)
     assert img[row, cols.min() + 2, 0] > 230 and img[row, cols.max() - 2, 0] < 25
     fresh.on_key(glfw.KEY_C)
@@ -544,3 +547,26 @@ def test_axes_and_outline_toggle(fresh):
     fresh.on_key(glfw.KEY_B)
     fresh.step()
     assert edge() == 0
+
+
+def test_click_pins_the_probe_and_data_range_resets(fresh):
+    import glfw
+
+    k = 10
+    at = pixel(fresh, fresh.lines.points[k])
+    fresh._cursor_cb(fresh.window, *at)
+    fresh._button_cb(fresh.window, glfw.MOUSE_BUTTON_LEFT, glfw.PRESS, 0)
+    fresh._button_cb(fresh.window, glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0)  # a click
+    assert fresh.probe == k and fresh.probe_pinned
+    fresh._cursor_cb(fresh.window, 5, 5)  # moving away keeps the pinned probe
+    fresh.step()
+    assert fresh.probe == k and fresh.overlays.box("probe") is not None
+    fresh._button_cb(fresh.window, glfw.MOUSE_BUTTON_LEFT, glfw.PRESS, 0)
+    fresh._button_cb(fresh.window, glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0)  # on empty scene
+    fresh.step()
+    assert fresh.probe is None and fresh.overlays.box("probe") is None
+    # the colour range: set, then back to the attribute's data range
+    fresh.set_color_range((0.25, 0.5))
+    assert fresh.color_map().range == (0.25, 0.5)
+    fresh.set_color_range(None)
+    assert fresh.color_map().range == fresh.value_range("speed") == (0.0, 1.0)

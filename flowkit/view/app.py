@@ -172,7 +172,6 @@ class Viewer:
         self._hover: tuple[float, float] | None = None  # scene pixels
         self._probe_key = None
         self._overlay_keys: dict[str, object] = {}
-        self._composed = None
         self._wake = WAKE_FRAMES
         self._last = time.perf_counter()
         self.panel = Panel(self)
@@ -261,8 +260,8 @@ class Viewer:
         if style is None:
             self.message = "nothing to " + move.__name__
             return None
-        self.message = f"{move.__name__}: {self.history.counts[0]} undo, " \
-                       f"{self.history.counts[1]} redo steps left"
+        n_undo, n_redo = self.history.counts
+        self.message = f"{move.__name__}: {n_undo} undo, {n_redo} redo steps left"
         self.wake()
         return self.set_style(style)
 
@@ -358,12 +357,15 @@ class Viewer:
         self.wake()
 
     # glfw key -> (its name, what it does); Ctrl+Z, Ctrl+Shift+Z, Ctrl+S besides
-    KEYS: ClassVar = {glfw.KEY_R: ("R", "reset camera"), glfw.KEY_S: ("S", "screenshot"),
-            glfw.KEY_C: ("C", "next colour attribute"), glfw.KEY_A: ("A", "orientation axes"),
-            glfw.KEY_B: ("B", "outline"), glfw.KEY_P: ("P", "probe on hover"),
-            glfw.KEY_H: ("H", "hide/show the panel"), glfw.KEY_ESCAPE: ("Esc", "quit")}
-    _TOGGLES: ClassVar = {"axes": "show_axes", "outline": "show_outline", "probe": "probe_on_hover",
-                "panel": "show_panel"}
+    KEYS: ClassVar = {
+        glfw.KEY_R: ("R", "reset camera"), glfw.KEY_S: ("S", "screenshot"),
+        glfw.KEY_C: ("C", "next colour attribute"), glfw.KEY_A: ("A", "orientation axes"),
+        glfw.KEY_B: ("B", "outline"), glfw.KEY_P: ("P", "probe on hover"),
+        glfw.KEY_H: ("H", "hide/show the panel"), glfw.KEY_ESCAPE: ("Esc", "quit")}
+    _TOGGLES: ClassVar = {"axes": "show_axes", "outline": "show_outline",
+                          "probe": "probe_on_hover", "panel": "show_panel"}
+    _TOGGLE_KEYS: ClassVar = {glfw.KEY_A: "axes", glfw.KEY_B: "outline", glfw.KEY_P: "probe",
+                              glfw.KEY_H: "panel"}
 
     def shown(self, what: str) -> bool:
         """Whether "axes", "outline", "probe" (on hover) or "panel" is on."""
@@ -399,11 +401,8 @@ class Viewer:
             self.message = f"saved {self.screenshot()}"
         elif key == glfw.KEY_C:
             self.cycle_color_attribute()
-        else:
-            what = {glfw.KEY_A: "axes", glfw.KEY_B: "outline", glfw.KEY_P: "probe",
-                    glfw.KEY_H: "panel"}.get(key)
-            if what is not None:
-                self.toggle(what)
+        elif key in self._TOGGLE_KEYS:
+            self.toggle(self._TOGGLE_KEYS[key])
 
     # -- probe ------------------------------------------------------------------------------------
     def pick(self, x: float, y: float, wait: bool = True) -> int | None:
