@@ -266,7 +266,7 @@ def test_viewer_refuses_a_style_the_lines_cannot_show(tmp_path):
 
 
 def test_numbers_are_kept_as_the_panel_shows_them():
-    from flowkit.view.panel import number_format, shown, shown_color
+    from flowkit.view.panel import keep_unedited, number_format, shown, shown_color
 
     assert number_format(4.072) == "%.3f" and number_format(0.0005) == "%.7f"
     assert number_format(1234.5) == "%.3f" and number_format(0.0) == "%.3f"
@@ -278,6 +278,11 @@ def test_numbers_are_kept_as_the_panel_shows_them():
     assert c == (64 / 255, 1.0, 0.0, 128 / 255)
     style = replace_at(RICH, ("styles", "slow", "bands", 0, "color"), c[:3] + (1.0,))
     assert style_to_dict(style)["styles"]["slow"]["bands"][0]["color"] == "#40ff00"
+    # a range or colour widget hands back every component: the untouched ones stay as they were
+    old = (0.12345678, 1.0)
+    new = [float(np.float32(0.12345678)), float(np.float32(2.5))]  # the upper bound dragged
+    assert keep_unedited(new, old, lambda r: [shown(x, "%.3f") for x in r]) == (0.12345678, 2.5)
+    assert keep_unedited([float(np.float32(0.3)), 0.2], (0.3, 0.1), shown_color) == (0.3, 51 / 255)
 
 
 def test_history_steps_and_drags():

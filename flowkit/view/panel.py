@@ -14,6 +14,7 @@ import functools
 import math
 
 import glfw
+import numpy as np
 from imgui_bundle import imgui
 
 from ..render.shapes import SHAPE_NAMES
@@ -68,6 +69,13 @@ def shown(x: float, fmt: str) -> float:
 def shown_color(c) -> tuple[float, ...]:
     """A colour as the colour widget shows it: channels in steps of 1/255."""
     return tuple(round(min(max(float(x), 0.0), 1.0) * 255) / 255 for x in c)
+
+
+def keep_unedited(new, old, show) -> tuple[float, ...]:
+    """Components a multi-value widget handed back: the ones not edited (equal in float32,
+    what ImGui holds) stay exactly as they were; the edited ones as shown."""
+    return tuple(o if np.float32(n) == np.float32(o) else x
+                 for n, o, x in zip(new, old, show(new)))
 
 
 class Panel:
@@ -169,7 +177,7 @@ class Panel:
         speed = _float_speed(big) if finite else 1e-3
         fmt = number_format(min((abs(x) for x in finite if x), default=big) or big)
         changed, r = imgui.drag_float2(label, [lo, hi], speed, format=fmt)
-        r = (shown(r[0], fmt), shown(r[1], fmt))
+        r = keep_unedited(r, value, lambda r: [shown(x, fmt) for x in r])
         return changed and r[0] != r[1] and r != (lo, hi), r
 
     def _params(self) -> None:
@@ -202,7 +210,7 @@ class Panel:
             return changed and x != p.value, x
         if p.kind == "color":
             changed, c = imgui.color_edit4(p.label, list(p.value))
-            c = shown_color(c)
+            c = keep_unedited(c, p.value, shown_color)
             return changed and c != tuple(p.value), c
         if p.kind == "range":
             return self._range(p.label, p.value)
