@@ -156,7 +156,6 @@ class Panel:
         if changed:
             self.viewer.set_color_range(r, merge=self._merge("colour range"))
         self._settle("colour range")
-        imgui.same_line()
         if imgui.button("data range"):
             v.set_color_range(None)
 
