@@ -15,6 +15,10 @@ panel draw, swap) -> glFinish, repeated ``--repeat`` times, interleaved over the
 - program switch:  the same change when both programs are already compiled
 - camera (orbit):  an orbit step (level-of-detail selection + draw, no style change)
 
+Then the probe: ``Viewer.pick`` (the vertex under the cursor, CPU k-d tree) at ``--probes``
+random cursor positions over the scene, best / median / max, and how many found a vertex;
+and the time the k-d tree took to build (in a background thread from the window's start).
+
 Best and median per kind; ratios against "redraw" from this run; the load average, since
 the machine is shared.
 
@@ -36,11 +40,14 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_render import halo_style, scene
 
 from flowkit.render.style import ColorMap, save_style
 
+PROBE = "probe (pick the vertex under the cursor)"
 KINDS = ("redraw", "uniform (panel)", "uniform (file)", "recompile", "program switch",
          "camera (orbit)")
 
@@ -71,7 +78,7 @@ def display():
         proc.wait(10)
 
 
-def measure(lines, size, repeat: int) -> dict[str, list[float]]:
+def measure(lines, size, repeat: int, probes: int) -> dict[str, list[float]]:
     from flowkit.view.app import Viewer
 
     colors = [(0.0, 0.0, 0.0, 1.0), (0.2, 0.0, 0.4, 1.0)]
@@ -116,8 +123,21 @@ def measure(lines, size, repeat: int) -> dict[str, list[float]]:
                 last = v.updates.copy()
                 timed("camera (orbit)", lambda: v.on_drag(2.0, 0.0), v.last_update)
                 assert v.updates == last
-            info = {"vertices drawn": v.renderer.n_drawn, "size": v.size,
+            info = {"vertices drawn": v.renderer.n_drawn, "size": v.size, "scene": v.scene_size,
                     "renderer": v.ctx.info["GL_RENDERER"]}
+            t0 = time.perf_counter()
+            v.picker.tree  # noqa: B018  (waits for the build, started with the window)
+            info["index wait"] = time.perf_counter() - t0
+            info["index build"] = v.picker.build_time
+            rng = np.random.default_rng(1)
+            sw, sh = v.scene_size
+            times[PROBE], hits = [], 0
+            for _ in range(probes):
+                x, y = rng.uniform(0, sw), rng.uniform(0, sh)
+                t0 = time.perf_counter()
+                hits += v.pick(x, y) is not None
+                times[PROBE].append(time.perf_counter() - t0)
+            info["hits"] = hits
     return times, info
 
 
@@ -127,15 +147,17 @@ def main(argv=None) -> int:
     p.add_argument("--vertices", type=int, default=1000)
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--size", default="1280x720")
+    p.add_argument("--probes", type=int, default=200)
     a = p.parse_args(argv)
     size = tuple(int(x) for x in a.size.lower().split("x"))
     os.environ["MESA_SHADER_CACHE_DISABLE"] = "true"  # read when the GL context is made
     lines = scene(a.lines, a.vertices)
     with display():
-        times, info = measure(lines, size, a.repeat)
+        times, info = measure(lines, size, a.repeat, a.probes)
     load = os.getloadavg()
     print(f"viewer: {a.lines} lines x {a.vertices} vertices = {lines.n_points} vertices, window "
-          f"{info['size'][0]}x{info['size'][1]}, {info['renderer']}, "
+          f"{info['size'][0]}x{info['size'][1]} (scene {info['scene'][0]}x{info['scene'][1]} "
+          f"right of the panel), {info['renderer']}, "
           f"{info['vertices drawn']} vertices drawn (level of detail)")
     print(f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on {os.cpu_count()} cores; "
           f"{a.repeat} repeats, interleaved")
@@ -146,6 +168,12 @@ def main(argv=None) -> int:
         t = times[k]
         print(f"{k:38s} {1e3 * min(t):9.1f} {1e3 * statistics.median(t):10.1f} "
               f"{min(t) / ref:14.2f}")
+    t = times[PROBE]
+    p95 = float(np.percentile(t, 95))
+    print(f"{PROBE}: best {1e3 * min(t):.2f} ms, median {1e3 * statistics.median(t):.2f} ms, "
+          f"95th percentile {1e3 * p95:.2f} ms, max {1e3 * max(t):.2f} ms over {len(t)} random cursor positions ({info['hits']} on a "
+          f"line); k-d tree of {lines.n_points} vertices built in {info['index build']:.2f} s "
+          f"(background thread; waited {info['index wait']:.2f} s for it after the timings)")
     return 0
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
+import time
 import tomllib
 
 import numpy as np
@@ -82,32 +83,59 @@ def write(path, text: str) -> None:
     os.replace(tmp, path)
 
 
+DOMAIN = [[-1.0, 1.0], [-0.5, 0.5], [-0.5, 0.5]]  # the field's box, recorded in the file
+
+
 @pytest.fixture(scope="module")
-def viewer(display, tmp_path_factory):
+def lines_file(tmp_path_factory):
+    """One straight line along x written to a lines file, with units on some attributes."""
+    import h5py
+
+    from flowkit.integrate.reasons import Reason
+    from flowkit.io.lines_h5 import write_lines
+
+    n = 64  # face-on it spans the image, end-on it is a dot
+    t = np.linspace(0.0, 1.0, n)
+    lines = Lines(np.c_[2 * t - 1, 0 * t, 0 * t], [0, n], {"speed": t, "temp": 1.0 - t},
+                  {"seed_id": np.array([7]), "reason": np.array([Reason.MAX_LENGTH], np.int8),
+                   "reason_backward": np.array([Reason.OUT_OF_DOMAIN], np.int8)},
+                  {"direction": "both", "length_units": "m", "domain_bounds": " ".join(str(v) for r in DOMAIN for v in r)})
+    path = write_lines(lines, tmp_path_factory.mktemp("lines") / "line.h5")
+    with h5py.File(path, "r+") as f:
+        f["VTKHDF/PointData/speed"].attrs["units"] = "m/s"
+    return path
+
+
+@pytest.fixture(scope="module")
+def viewer(display, tmp_path_factory, lines_file):
+    from flowkit.io.lines_h5 import read_lines, read_units
     from flowkit.view.app import Viewer
 
     d = tmp_path_factory.mktemp("viewer")
     style = d / "style.toml"
     style.write_text(BASE)
-    n = 64  # one line along x: face-on it spans the image, end-on it is a dot
-    t = np.linspace(0.0, 1.0, n)
-    lines = Lines(np.c_[2 * t - 1, 0 * t, 0 * t], [0, n], {"speed": t, "temp": 1.0 - t})
-    v = Viewer(lines, style, size=SIZE, vsync=False, screenshot_dir=d)
+    v = Viewer(read_lines(lines_file), style, size=SIZE, vsync=False, screenshot_dir=d,
+               units=read_units(lines_file))
     yield v
     v.close()
 
 
 @pytest.fixture
 def fresh(viewer):
-    """The viewer with the base style file, its camera, no error, a drawn frame."""
+    """The viewer with the base style file, its camera, no error, a drawn frame, no undo
+    history; the panel hidden (the scene is the whole window), axes on, outline and probe off."""
     import glfw
 
     write(viewer.style_path, BASE)
     viewer.step()
     viewer.reset_camera()
+    viewer.history.clear()
+    viewer.show_panel, viewer.show_axes, viewer.show_outline = False, True, False
+    viewer.probe, viewer.probe_pinned, viewer._hover = None, False, None
     glfw.set_window_should_close(viewer.window, False)
     viewer.step()
     assert viewer.error is None and viewer.style == load_style(viewer.style_path)
+    assert viewer.scene_size == SIZE
     return viewer
 
 
@@ -124,16 +152,23 @@ def count(img, rgb) -> int:
 
 
 def test_window_shows_scene_and_panel(fresh):
-    img = fresh.step(read_screen=True)[:, :, :3].astype(int)
-    h, w = img.shape[:2]
-    assert (w, h) == fresh.size == SIZE
-    # right of the panel the window shows the scene as drawn offscreen
-    np.testing.assert_array_equal(img[:, 400:], scene(fresh)[:, 400:])
-    # the panel covers the top left: it differs from the (black there) scene
-    assert lit(img[10:100, 10:300]).mean() > 0.3 and not lit(scene(fresh)[10:100, 10:300]).any()
-    assert fresh.frame_time > 0 and fresh.scene_time > 0
     import glfw
 
+    fresh.on_key(glfw.KEY_H)  # the panel: the scene is the window right of it
+    fresh.step()
+    img = fresh.step(read_screen=True)[:, :, :3].astype(int)
+    h, w = img.shape[:2]
+    x0 = fresh.scene_origin
+    assert (w, h) == fresh.size == SIZE and 200 <= x0 <= 400
+    assert fresh.scene_size == (SIZE[0] - x0, SIZE[1])
+    # right of the panel the window shows the scene, overlays included, as drawn offscreen
+    np.testing.assert_array_equal(img[:, x0:], fresh.image()[:, :, :3])
+    # the panel covers the left: it differs from the (black there) scene ...
+    assert lit(img[10:100, 10:x0 - 10]).mean() > 0.3
+    # ... and the whole line is right of it: the scene is centred in its viewport
+    cols = np.flatnonzero(lit(scene(fresh)).any(axis=0))
+    assert (cols.min() + cols.max()) / 2 == pytest.approx(fresh.scene_size[0] / 2, abs=2)
+    assert fresh.frame_time > 0 and fresh.scene_time > 0
     glfw.set_window_size(fresh.window, 500, 300)  # the scene follows the window's size
     try:
         for _ in range(20):  # the X server applies the resize asynchronously
@@ -141,7 +176,12 @@ def test_window_shows_scene_and_panel(fresh):
             if img.shape[:2] == (300, 500):
                 break
         assert img.shape[:2] == (300, 500) and fresh.size == (500, 300)
-        np.testing.assert_array_equal(img[:, 400:, :3], scene(fresh)[:, 400:])
+        x0 = fresh.scene_origin
+        np.testing.assert_array_equal(img[:, x0:, :3], fresh.image()[:, :, :3])
+        fresh.on_key(glfw.KEY_H)  # hidden: the scene has the whole window
+        img = fresh.step(read_screen=True)
+        assert fresh.scene_origin == 0 and fresh.scene_size == (500, 300)
+        np.testing.assert_array_equal(img[:, :, :3], fresh.image()[:, :, :3])
     finally:
         glfw.set_window_size(fresh.window, *SIZE)
         for _ in range(20):
@@ -241,6 +281,8 @@ def test_style_file_flag_change_recompiles(fresh):
 
 
 def test_broken_style_keeps_last_image_and_reports(fresh, capsys):
+    fresh.show_panel = True
+    fresh.step()
     good = scene(fresh)
     for broken, words in ((BASE.replace("width = 2.0", "width = -2.0"), ("width", "-2.0")),
                           (BASE + "[[bands\n", ("not valid TOML",)),
@@ -298,9 +340,12 @@ def test_colour_key_cycles_attribute(fresh):
     cols = np.flatnonzero(lit(img[row:row + 1]).any(axis=0))
     left, right = img[row, cols.min() + 2, 0], img[row, cols.max() - 2, 0]
     assert left < 25 and right > 230  # speed = x: dark to bright
+    readout = fresh.overlays.overlays["colour"].image  # the attribute and range shown
     fresh.on_key(glfw.KEY_C)
     fresh.step()
     assert fresh.style.line_style.bands[0].color.attribute == "temp"
+    assert fresh.overlays.overlays["colour"].image is not readout
+    assert not np.array_equal(fresh.overlays.overlays["colour"].image[:, :60], readout[:, :60])
     img = scene(fresh)
     assert img[row, cols.min() + 2, 0] > 230 and img[row, cols.max() - 2, 0] < 25
     fresh.on_key(glfw.KEY_C)
@@ -317,7 +362,9 @@ def test_screenshot_key_writes_png(fresh):
     assert [p.name for p in shots][-2:] == ["flowkit-view-000.png", "flowkit-view-001.png"]
     img = np.asarray(Image.open(shots[-1]))
     assert img.shape == (SIZE[1], SIZE[0], 4)
-    np.testing.assert_array_equal(img, fresh.renderer.read())
+    np.testing.assert_array_equal(img, fresh.image())  # the scene with its overlays
+    x0, y0, x1, y1 = fresh.overlays.box("axes")
+    assert (img[y0:y1, x0:x1] != fresh.renderer.read()[y0:y1, x0:x1]).any()
     assert not list(fresh.screenshot_dir.glob(".*.tmp.png"))  # atomic: no temp left
 
 
@@ -330,10 +377,11 @@ def test_benchmark_runs(display, monkeypatch, capsys):
     import bench_viewer
 
     assert bench_viewer.main(["--lines", "10", "--vertices", "40", "--repeat", "1",
-                              "--size", "200x150"]) == 0
+                              "--size", "200x150", "--probes", "5"]) == 0
     out = capsys.readouterr().out
     for kind in bench_viewer.KINDS:  # each timed change asserted its update kind in the run
         assert kind in out
+    assert f"{bench_viewer.PROBE}: best" in out and "over 5 random cursor positions" in out
 
 
 def test_run_loop_until_escape(display, tmp_path):
@@ -350,9 +398,175 @@ def test_run_loop_until_escape(display, tmp_path):
 
     def counted():
         step()
+        v.invalidate()  # something to draw again: run() draws the next frame
         if v.frames == 3:
             v.on_key(glfw.KEY_ESCAPE)
 
     v.step = counted
     v.run()
     assert v.frames == 3 and v.window is None
+
+
+def test_idle_uses_almost_no_cpu(fresh):
+    """Nothing changing: run's loop sleeps between style file polls (psutil, 10 s)."""
+    import psutil
+
+    fresh.loop(seconds=1.0)  # the frames after the last input, then idle
+    proc = psutil.Process()
+    frames, before, t0 = fresh.frames, proc.cpu_times(), time.perf_counter()
+    fresh.loop(seconds=10.0)
+    after, elapsed = proc.cpu_times(), time.perf_counter() - t0
+    used = (after.user - before.user + after.system - before.system) / elapsed
+    assert elapsed >= 10.0 and used < 0.02, (used, fresh.frames - frames)
+    assert fresh.frames == frames  # not one frame drawn
+    write(fresh.style_path, BASE.replace("#ff0000", "#00ff00"))  # a file change still lands
+    fresh.loop(seconds=1.0)
+    assert fresh.frames > frames and count(scene(fresh), GREEN) > 100
+
+
+def pixel(v, point):
+    """Scene pixel (x, y) of a world point with the viewer's camera."""
+    return project(v.renderer.bounds, v.camera, v.scene_size, [point])[0]
+
+
+def test_probe_reports_the_files_values(fresh, lines_file):
+    import h5py
+
+    k = 21  # a vertex of the straight line
+    with h5py.File(lines_file) as f:
+        speed, temp = (float(f[f"VTKHDF/PointData/{a}"][k]) for a in ("speed", "temp"))
+        x = f["VTKHDF/Points"][k]
+    readout = fresh.probe_at(*pixel(fresh, x))
+    assert readout is not None and fresh.probe == k
+    assert readout[0] == f"position ({x[0]:.6g}, 0, 0) m"
+    assert "seed 7, line 0, vertex 22 of 64" in readout
+    assert f"speed {speed:.6g} m/s" in readout and f"temp {temp:.6g}" in readout
+    assert "stopped: forward max_length, backward out_of_domain" in readout
+    fresh.step()
+    img, sc = fresh.image(), fresh.renderer.read()
+    x0, y0, x1, y1 = fresh.overlays.box("probe")  # the read-out is drawn beside the vertex
+    assert (img[y0:y1, x0:x1] != sc[y0:y1, x0:x1]).any(axis=2).mean() > 0.3
+    assert fresh.probe_at(5, 5) is None  # nothing there: nothing shown
+    fresh.step()
+    assert fresh.overlays.box("probe") is None
+
+
+def test_hover_probes_and_the_wheel_zooms_at_the_cursor(fresh):
+    k = 50
+    at = pixel(fresh, fresh.lines.points[k])
+    fresh._cursor_cb(fresh.window, *at)  # panel hidden: window = scene coordinates
+    fresh.step()
+    assert fresh.probe == k and fresh.overlays.box("probe") is not None
+    width = fresh.camera.setup(fresh.renderer.bounds, *SIZE).proj[0, 0]
+    fresh._scroll_cb(fresh.window, 0, 3)  # zoom in 1 / 0.9**3 about the cursor
+    fresh.step()
+    assert fresh.camera.setup(fresh.renderer.bounds, *SIZE).proj[0, 0] == pytest.approx(
+        width / 0.9 ** 3)
+    np.testing.assert_allclose(pixel(fresh, fresh.lines.points[k]), at, atol=1e-6)
+    assert fresh.probe == k  # still under the cursor
+
+
+def test_undo_returns_the_style_files_values(fresh):
+    import glfw
+
+    file_style = load_style(fresh.style_path)
+    width = ("styles", "default", "bands", 1, "width")
+    for i in range(30):  # one drag of the width: one undo step
+        fresh.edit(width, 2.0 + 0.1 * (i + 1), merge=i > 0)
+    assert fresh.history.counts == (1, 0)
+    for i in range(55):  # 55 separate edits
+        fresh.edit(("styles", "default", "bands", 1, "color"), (i / 64, 0.5, 0.25, 1.0))
+    fresh.on_key(glfw.KEY_C)  # the colour attribute: undoable too
+    fresh.set_color_range((0.2, 0.3))
+    edited = fresh.style
+    assert fresh.history.counts == (58, 0)
+    for _ in range(57):
+        fresh.on_key(glfw.KEY_Z, mods=glfw.MOD_CONTROL)
+    assert fresh.style.line_style.bands[1].width == pytest.approx(5.0)
+    fresh.on_key(glfw.KEY_Z, mods=glfw.MOD_CONTROL)
+    assert fresh.style == file_style and fresh.style.line_style.bands[1].width == 2.0
+    assert fresh.undo() is None and fresh.history.counts == (0, 58)
+    for _ in range(58):
+        fresh.on_key(glfw.KEY_Z, mods=glfw.MOD_CONTROL | glfw.MOD_SHIFT)
+    assert fresh.style == edited
+    fresh.step()
+    assert fresh.error is None
+
+
+def test_saved_width_is_written_as_the_panel_shows_it(fresh, monkeypatch):
+    """The width widget (float32 inside ImGui) dragged to 4.072: the file says 4.072."""
+    from flowkit.view import panel
+
+    fresh.show_panel = True
+    drag = panel.imgui.drag_float
+
+    def dragged(label, value, *args, **kwargs):  # what ImGui returns for a drag to 4.072
+        changed, x = drag(label, value, *args, **kwargs)
+        if label == "width" and value == 2.0:
+            assert kwargs["format"] == "%.3f"
+            return True, float(np.float32(4.072))
+        return changed, x
+
+    monkeypatch.setattr(panel.imgui, "drag_float", dragged)
+    fresh.step()
+    monkeypatch.undo()
+    assert fresh.style.line_style.bands[1].width == 4.072
+    fresh.save_style()
+    text = fresh.style_path.read_text()
+    assert "width = 4.072\n" in text and "4.072000" not in text
+    assert tomllib.loads(text)["bands"][1]["width"] == 4.072
+
+
+def test_axes_and_outline_toggle(fresh):
+    import glfw
+
+    fresh.on_drag(-50, 40)  # turned so that no axis points at the eye
+    img = fresh.image()[:, :, :3].astype(int)
+    x0, y0, x1, y1 = fresh.overlays.box("axes")
+    assert x0 < 20 and y1 > SIZE[1] - 20  # bottom left
+    box = img[y0:y1, x0:x1]
+    for rgb in ((235, 70, 70), (90, 205, 90), (90, 140, 255)):  # x, y, z arrows
+        assert count(box, rgb) > 20, rgb
+    assert not lit(scene(fresh)[y0:y1, x0:x1]).any()  # the scene is black there
+    fresh.on_key(glfw.KEY_A)
+    assert not lit(fresh.image()[y0:y1, x0:x1, :3]).any() and fresh.overlays.box("axes") is None
+    # the outline: the field's box from the file, its top edge (z = 0.5) a grey row
+    fresh.reset_camera()
+    fresh.step()
+    grey = (204, 204, 204)
+    row = round(pixel(fresh, (0.0, 0.0, 0.5))[1])
+    assert row < SIZE[1] / 2 - 50  # well above the line
+
+    def edge():
+        return count(scene(fresh)[row - 1:row + 2], grey)
+
+    assert edge() == 0
+    fresh.on_key(glfw.KEY_B)
+    fresh.step()
+    assert edge() > 0.5 * SIZE[0]
+    fresh.on_key(glfw.KEY_B)
+    fresh.step()
+    assert edge() == 0
+
+
+def test_click_pins_the_probe_and_data_range_resets(fresh):
+    import glfw
+
+    k = 10
+    at = pixel(fresh, fresh.lines.points[k])
+    fresh._cursor_cb(fresh.window, *at)
+    fresh._button_cb(fresh.window, glfw.MOUSE_BUTTON_LEFT, glfw.PRESS, 0)
+    fresh._button_cb(fresh.window, glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0)  # a click
+    assert fresh.probe == k and fresh.probe_pinned
+    fresh._cursor_cb(fresh.window, 5, 5)  # moving away keeps the pinned probe
+    fresh.step()
+    assert fresh.probe == k and fresh.overlays.box("probe") is not None
+    fresh._button_cb(fresh.window, glfw.MOUSE_BUTTON_LEFT, glfw.PRESS, 0)
+    fresh._button_cb(fresh.window, glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0)  # on empty scene
+    fresh.step()
+    assert fresh.probe is None and fresh.overlays.box("probe") is None
+    # the colour range: set, then back to the attribute's data range
+    fresh.set_color_range((0.25, 0.5))
+    assert fresh.color_map().range == (0.25, 0.5)
+    fresh.set_color_range(None)
+    assert fresh.color_map().range == fresh.value_range("speed") == (0.0, 1.0)

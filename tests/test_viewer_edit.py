@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from flowkit.lines import Lines
 from flowkit.render import Camera
 from flowkit.render.style import (
     Band,
@@ -235,7 +236,6 @@ def test_file_watch(tmp_path):
 def test_cli_view_errors(tmp_path):
     """Without a display the CLI says what to do in one line; bad files are named."""
     from flowkit.io.lines_h5 import write_lines
-    from flowkit.lines import Lines
 
     lines = tmp_path / "l.h5"
     write_lines(Lines(np.zeros((2, 3)) + [[0, 0, 0], [1, 0, 0]], [0, 2]), lines)
@@ -255,7 +255,6 @@ def test_cli_view_errors(tmp_path):
 
 def test_viewer_refuses_a_style_the_lines_cannot_show(tmp_path):
     """Checked before any window opens: the file, the attribute and what there is."""
-    from flowkit.lines import Lines
     from flowkit.view.app import Viewer
 
     style = tmp_path / "s.toml"
@@ -264,3 +263,136 @@ def test_viewer_refuses_a_style_the_lines_cannot_show(tmp_path):
     lines = Lines(np.zeros((2, 3)) + [[0, 0, 0], [1, 0, 0]], [0, 2], {"speed": np.ones(2)})
     with pytest.raises(StyleError, match=r"s\.toml.*'T'.*available: speed"):
         Viewer(lines, style)
+
+
+def test_numbers_are_kept_as_the_panel_shows_them():
+    from flowkit.view.panel import keep_unedited, number_format, shown, shown_color
+
+    assert number_format(4.072) == "%.3f" and number_format(0.0005) == "%.7f"
+    assert number_format(1234.5) == "%.3f" and number_format(0.0) == "%.3f"
+    f32 = float(np.float32(4.072))  # what ImGui's float32 widget hands back
+    assert f32 != 4.072 and shown(f32, "%.3f") == 4.072
+    assert repr(shown(float(np.float32(0.0012346)), number_format(0.0012346))) == "0.001235"
+    assert shown(math.inf, "%.3f") == math.inf
+    c = shown_color([float(np.float32(64 / 255)), 1.0000001, -0.1, 0.5])
+    assert c == (64 / 255, 1.0, 0.0, 128 / 255)
+    style = replace_at(RICH, ("styles", "slow", "bands", 0, "color"), c[:3] + (1.0,))
+    assert style_to_dict(style)["styles"]["slow"]["bands"][0]["color"] == "#40ff00"
+    # a range or colour widget hands back every component: the untouched ones stay as they were
+    old = (0.12345678, 1.0)
+    new = [float(np.float32(0.12345678)), float(np.float32(2.5))]  # the upper bound dragged
+    assert keep_unedited(new, old, lambda r: [shown(x, "%.3f") for x in r]) == (0.12345678, 2.5)
+    assert keep_unedited([float(np.float32(0.3)), 0.2], (0.3, 0.1), shown_color) == (0.3, 51 / 255)
+
+
+def test_history_steps_and_drags():
+    from flowkit.view.history import History
+
+    h = History(limit=60)
+    for i in range(70):
+        h.record(i)
+    assert h.counts == (60, 0)
+    h.record(70, key="w")
+    h.record(71, key="w", merge=True)  # the same drag: no new step
+    h.record(72, key="v", merge=True)  # another widget: a step
+    assert h.counts == (60, 0)  # bounded: the oldest went
+    assert h.undo("now") == 72 and h.undo(72) == 70 and h.counts == (58, 2)
+    assert h.redo(70) == 72 and h.counts == (59, 1)
+    h.record(99)  # a new edit drops what could be redone
+    assert h.counts == (60, 0) and h.redo("x") is None
+    h.clear()
+    assert h.undo("x") is None
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic"])
+def test_wheel_zoom_keeps_the_point_under_the_cursor(projection):
+    cam = Camera(azimuth=30, elevation=20, projection=projection)
+    size, at = (400, 300), (310.0, 80.0)
+    s = orbit.pinned(cam, BOUNDS, size).setup(BOUNDS, *size)
+    # the world point under the cursor on the target's depth plane
+    ndc = np.array([2 * at[0] / size[0] - 1, 1 - 2 * at[1] / size[1]])
+    target = BOUNDS.mean(axis=1)
+    depth = (s.proj @ s.view @ np.r_[target, 1.0])
+    p = np.linalg.inv(s.proj @ s.view) @ np.r_[ndc * depth[3], depth[2], depth[3]]
+    z = orbit.zoom_at(cam, 2, BOUNDS, size, *at)
+    s2 = z.setup(BOUNDS, *size)
+    clip = s2.proj @ s2.view @ p
+    px = ((clip[0] / clip[3] + 1) / 2 * size[0], (1 - clip[1] / clip[3]) / 2 * size[1])
+    assert px == pytest.approx(at, abs=1e-6)
+    # and it magnifies as the centred zoom does
+    c = orbit.zoom(cam, 2, BOUNDS, size).setup(BOUNDS, *size)
+    assert s2.px_scale[0] * z.distance + s2.px_scale[1] == pytest.approx(
+        c.px_scale[0] * orbit.zoom(cam, 2, BOUNDS, size).distance + c.px_scale[1]
+        if projection == "perspective" else c.px_scale[1], rel=1e-9)
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic"])
+def test_picker_finds_the_vertex_drawn_under_the_cursor(projection):
+    """Against projecting every vertex: within 8 px, the front layer, the nearest there."""
+    from flowkit.view.probe import Picker
+
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-1, 1, (60000, 3)) * [1.0, 2.0, 0.5]  # dense: early exits
+    points[5] = np.nan  # not finite: never picked
+    picker = Picker(points)
+    bounds = np.array([[-1.0, 1.0], [-2.0, 2.0], [-0.5, 0.5]])
+    size = (320, 240)
+    s = Camera(azimuth=40, elevation=30, projection=projection).setup(bounds, *size)
+    clip = np.c_[points, np.ones(len(points))] @ (s.proj @ s.view).T
+    sx = (clip[:, 0] / clip[:, 3] + 1) / 2 * size[0]
+    sy = (1 - clip[:, 1] / clip[:, 3]) / 2 * size[1]
+    depth = -(points @ s.view[2, :3] + s.view[2, 3])
+    hits = 0
+    for x, y in rng.uniform(0.2, 0.8, (60, 2)) * size:
+        got = picker.pick(s, size, x, y, bounds)
+        d2 = (sx - x) ** 2 + (sy - y) ** 2
+        near = np.flatnonzero(d2 <= 64)
+        if near.size == 0:
+            assert got is None
+            continue
+        hits += 1
+        px = s.px_scale[0] * depth[near].min() + s.px_scale[1]
+        front = near[depth[near] <= depth[near].min() + 8 * px]  # within a pick radius in depth
+        assert got == front[np.argmin(d2[front])]  # the nearest to the cursor there
+    assert hits > 20
+    assert picker.pick(s, size, -500, -500, bounds) is None  # off the scene
+
+
+def test_probe_read_out():
+    from flowkit.integrate.reasons import Reason
+    from flowkit.view.probe import describe
+
+    lines = Lines(np.arange(15.0).reshape(5, 3), [0, 2, 5],
+                  {"speed": np.array([1.0, 2, 3, 4, 5]), "velocity": np.ones((5, 3))},
+                  {"seed_id": np.array([4, 9]), "reason": np.array([2, 0], np.int8),
+                   "n_accepted": np.array([10, 20], np.int32)}, {"direction": "backward"})
+    out = describe(lines, 3, {"speed": "m/s", "position": "mm", "velocity": "1"})
+    assert out == ["position (9, 10, 11) mm", "seed 9, line 1, vertex 2 of 3", "speed 4 m/s",
+                   "velocity (1, 1, 1)", f"stopped (backward): {Reason(0).label}",
+                   "n_accepted 20"]
+
+
+def test_read_units(tmp_path):
+    import h5py
+
+    from flowkit.io.lines_h5 import read_units, write_lines
+
+    lines = Lines(np.zeros((2, 3)), [0, 2], {"speed": np.ones(2), "T": np.ones(2)},
+                  attrs={"length_units": "m"})
+    path = write_lines(lines, tmp_path / "l.h5")
+    with h5py.File(path, "r+") as f:
+        f["VTKHDF/PointData/speed"].attrs["units"] = "m/s"
+    assert read_units(path) == {"position": "m", "speed": "m/s"}
+
+
+def test_domain_bounds_and_outline_edges():
+    from flowkit.view.app import domain_bounds
+    from flowkit.view.outline import box_edges
+
+    lines = Lines(np.zeros((2, 3)), [0, 2], attrs={"domain_bounds": "0.0 1.0 -2 2 0 0.5"})
+    np.testing.assert_array_equal(domain_bounds(lines), [[0, 1], [-2, 2], [0, 0.5]])
+    assert domain_bounds(Lines(np.zeros((2, 3)), [0, 2], attrs={"domain_bounds": "1 2"})) is None
+    edges = box_edges(domain_bounds(lines)).reshape(12, 2, 3)
+    d = np.abs(edges[:, 1] - edges[:, 0])
+    assert ((d > 0).sum(axis=1) == 1).all()  # each edge along one axis
+    assert sorted(d.max(axis=1)) == [0.5] * 4 + [1.0] * 4 + [4.0] * 4

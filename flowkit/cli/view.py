@@ -1,10 +1,14 @@
 """``flowkit view lines.h5 --style style.toml``: an interactive window.
 
-Left drag orbits, right (or shift + left) drag pans, scroll zooms; R resets the camera, S saves
-a screenshot (flowkit-view-NNN.png), C cycles the colour attribute of the colour-mapped bands,
-Esc quits.  The style file is watched: save it in an editor and the view follows (an error is
-shown in the window and the last good style stays).  The panel edits the style; "save style"
-writes it back.  Needs the ``view`` extra (pip install 'flowkit[view]') and a display.
+Left drag orbits, right (or shift + left) drag pans, the wheel zooms towards the cursor;
+hovering a line probes the vertex under the cursor (position, seed, attributes with units, why
+the line stopped), a click pins it.  R resets the camera, S saves a screenshot
+(flowkit-view-NNN.png), C cycles the colour attribute of the colour-mapped bands, A toggles the
+orientation axes, B the outline, P the probe, H the panel, Ctrl+Z / Ctrl+Shift+Z undo and redo
+panel edits, Ctrl+S saves the style, Esc quits.  The style file is watched: save it in an editor
+and the view follows (an error is shown in the window and the last good style stays).  The
+panel edits the style; "save style" writes it back.  Needs the ``view`` extra
+(pip install 'flowkit[view]') and a display.
 """
 
 from __future__ import annotations
@@ -30,13 +34,13 @@ def run(args) -> int:
     except ImportError as e:
         raise CLIError(f"the viewer needs the optional 'view' extra ({e.name} is missing): "
                        "pip install 'flowkit[view]'") from None
-    from ..io.lines_h5 import read_lines
+    from ..io.lines_h5 import read_lines, read_units
 
     size = _size(args.size)
     lines = read_lines(args.lines)
     try:
         viewer = Viewer(lines, args.style, size=size, vsync=not args.no_vsync,
-                        screenshot_dir=args.screenshots)
+                        screenshot_dir=args.screenshots, units=read_units(args.lines))
     except ViewerError as e:
         raise CLIError(str(e)) from None
     viewer.run()

@@ -105,6 +105,9 @@ def _attrs(field: Field, opts: TraceOptions) -> dict:
         "cell_aware": int(opts.cell_aware),
         "cross_faces": int(opts.cross_faces), "max_length": opts.max_length, "max_time": opts.max_time,
         "max_steps": opts.max_steps, "source": str(field.source), "reason_names": ",".join(REASON_NAMES),
+        # the field's box "xmin xmax ymin ymax zmin zmax" (text, like the tolerances: it reads
+        # back the same from every writer): the viewer's outline
+        "domain_bounds": " ".join(repr(float(v)) for v in field.grid.bounds.ravel()),
     }
 
 

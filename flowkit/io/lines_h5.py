@@ -488,6 +488,21 @@ def _read(f: h5py.File, path: Path, attributes) -> Lines:
     return Lines(points, offsets, point_data, line_data, _get_attrs(f))
 
 
+def read_units(path) -> dict[str, str]:
+    """The units the file gives (CF ``units`` attributes): ``"position"`` for x, y, z, and each
+    point or line attribute that has them; names without units are left out."""
+    path = Path(path)
+    out = {}
+    with _open(path) as f:
+        if "x" in f and "units" in f["x"].attrs:
+            out["position"] = f["x"].attrs["units"]
+        for group in ("VTKHDF/PointData", "VTKHDF/CellData"):
+            for name, ds in f.get(group, {}).items():
+                if "units" in ds.attrs:
+                    out[name] = ds.attrs["units"]
+    return {k: v.decode() if isinstance(v, bytes) else str(v) for k, v in out.items()}
+
+
 def _attribute_names(f: h5py.File) -> tuple[list[str], list[str]]:
     point = list(f["VTKHDF/PointData"]) if "VTKHDF/PointData" in f else []
     cells = f.get("VTKHDF/CellData", {})

@@ -2,8 +2,13 @@
 offscreen target (blitted to the window), a Dear ImGui panel over it, the style file polled.
 
 ``Viewer.step()`` runs one frame: events, style file, panel, scene (redrawn only when the style,
-camera or window size changed), blit, panel, swap.  The event handlers (``on_drag``,
-``on_scroll``, ``on_key``) are what the glfw callbacks call, and what tests call.
+camera, outline or viewport changed), overlays (axes, colour range, probe), panel, swap.  ``run``
+calls it only when something happened (input, a window event, a style file change, a text field
+being typed in); otherwise it sleeps in ``glfw.wait_events_timeout``, waking to poll the file.
+The event handlers (``on_drag``, ``on_scroll``, ``on_key``) are what the glfw callbacks call, and
+what tests call.
+
+The scene's viewport is the window right of the panel (the whole window with the panel hidden).
 
 Style updates: a new style whose template flags equal the current ones only changes uniforms;
 other flags select (and, the first time, compile) another program.  ``updates`` counts both.
@@ -15,6 +20,7 @@ import sys
 import time
 import tomllib
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 from imgui_bundle import imgui  # before glfw: pyglfw then loads imgui-bundle's libglfw, one GLFW
@@ -28,8 +34,16 @@ from ..render.renderer import LineRenderer, save_png
 from ..render.style import Style, StyleError, save_style, style_from_dict
 from . import orbit
 from .edit import colormapped, get_at, replace_at, with_color_attribute
-from .panel import Panel, imgui_key
+from .history import History
+from .outline import Outline
+from .overlay import OverlayLayer, axes_image, ring_image, text_image
+from .panel import PANEL_WIDTH, Panel, imgui_key
+from .probe import Picker, describe
 from .watch import FileWatch
+
+IDLE_POLL = 0.25  # s between style file polls while nothing happens
+WAKE_FRAMES = 3  # frames drawn after an event (ImGui settles hover and active states)
+MARGIN = 8  # px between overlays and the scene's edges
 
 
 class ViewerError(RuntimeError):
@@ -62,6 +76,19 @@ def unreadable(lines: Lines, style: Style) -> str | None:
     return None
 
 
+def domain_bounds(lines: Lines) -> np.ndarray | None:
+    """The field's box (3, 2) that the lines were traced in, where their file records it
+    (``domain_bounds``: six numbers, as text or an array), else None."""
+    value = lines.attrs.get("domain_bounds")
+    if value is None:
+        return None
+    try:
+        b = np.asarray(value.split() if isinstance(value, str) else value, float).reshape(3, 2)
+    except ValueError:
+        return None  # not six numbers: the lines' own box instead
+    return b if np.all(np.isfinite(b)) and np.all(b[:, 1] >= b[:, 0]) else None
+
+
 def _init_glfw() -> None:
     errors = []
     glfw.set_error_callback(lambda code, text: errors.append(text.decode(errors="replace")
@@ -77,8 +104,9 @@ class Viewer:
 
     def __init__(self, lines: Lines, style_path, *, size=(1280, 800), vsync: bool = True,
                  visible: bool = True, screenshot_dir=None, tolerance: float | None = None,
-                 title: str | None = None):
+                 title: str | None = None, units: dict[str, str] | None = None):
         self.lines = lines
+        self.units = dict(units or {})  # attribute -> units, "position" for x, y, z
         self.style_path = Path(style_path)
         style, text = read_style(self.style_path)  # a bad style at start is the caller's error
         problem = unreadable(lines, style)
@@ -104,6 +132,13 @@ class Viewer:
         imgui.get_io().set_ini_filename(None)  # no imgui.ini beside the user's files
         imgui.backends.opengl3_init("#version 330")
         self.renderer = LineRenderer(lines, self.ctx, tolerance=tolerance)
+        self.overlays = OverlayLayer(self.ctx)
+        self.outline_bounds = domain_bounds(lines)
+        if self.outline_bounds is None:
+            self.outline_bounds = self.renderer.bounds
+        self.outline = Outline(self.ctx, self.outline_bounds)
+        self.picker = Picker(lines.points)  # its index builds in a thread
+        self.history = History()
         self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else Path.cwd()
 
         self.style = self.file_style = style  # in effect / last good from the file
@@ -122,7 +157,22 @@ class Viewer:
         self._scene_key = None
         self._drag: int | None = None
         self._cursor: tuple[float, float] | None = None
+        self._press: tuple[float, float] | None = None
         self._pixel_scale = 1.0
+        # what is shown besides the lines (keys and panel toggle them)
+        self.show_axes = True
+        self.show_outline = False
+        self.show_panel = True
+        self.probe_on_hover = True
+        self.panel_width = PANEL_WIDTH  # framebuffer pixels, as the panel last drew itself
+        self.scene_origin = 0  # x of the scene's viewport in the window
+        self.scene_size = self.size
+        self.probe: int | None = None  # the probed vertex
+        self.probe_pinned = False
+        self._hover: tuple[float, float] | None = None  # scene pixels
+        self._probe_key = None
+        self._overlay_keys: dict[str, object] = {}
+        self._wake = WAKE_FRAMES
         self._last = time.perf_counter()
         self.panel = Panel(self)
         glfw.set_cursor_pos_callback(self.window, self._cursor_cb)
@@ -130,6 +180,12 @@ class Viewer:
         glfw.set_scroll_callback(self.window, self._scroll_cb)
         glfw.set_key_callback(self.window, self._key_cb)
         glfw.set_char_callback(self.window, self._char_cb)
+        glfw.set_window_refresh_callback(self.window, lambda _w: self.wake())
+        glfw.set_framebuffer_size_callback(self.window, lambda _w, _x, _y: self.wake())
+
+    def wake(self, frames: int = WAKE_FRAMES) -> None:
+        """Draw the next ``frames`` frames (``run`` sleeps otherwise)."""
+        self._wake = max(self._wake, frames)
 
     # -- style ------------------------------------------------------------------------------------
     def _flags(self, style: Style):
@@ -177,16 +233,47 @@ class Viewer:
         kind = self.set_style(style)
         if kind is not None:
             self.file_style, self.source = style, text
+        if kind in ("uniforms", "recompile"):  # the file is the source: earlier edits are gone
+            self.history.clear()
+        self.wake()
         return kind
 
-    def edit(self, path: tuple, value) -> str | None:
-        """Set one style parameter (what a panel widget does); see ``set_style``."""
+    def apply(self, style: Style, key=None, merge: bool = False) -> str | None:
+        """A user's edit (panel, C, colour range): ``set_style`` and an undo step; ``merge``
+        continues the last step when it had the same ``key`` (one widget being dragged)."""
+        before = self.style
+        kind = self.set_style(style)
+        if kind in ("uniforms", "recompile"):
+            self.history.record(before, key, merge)
+        self.wake()
+        return kind
+
+    def undo(self) -> str | None:
+        """Back to the style before the last edit (exactly: styles are kept whole)."""
+        return self._history_step(self.history.undo)
+
+    def redo(self) -> str | None:
+        return self._history_step(self.history.redo)
+
+    def _history_step(self, move) -> str | None:
+        style = move(self.style)
+        if style is None:
+            self.message = "nothing to " + move.__name__
+            return None
+        n_undo, n_redo = self.history.counts
+        self.message = f"{move.__name__}: {n_undo} undo, {n_redo} redo steps left"
+        self.wake()
+        return self.set_style(style)
+
+    def edit(self, path: tuple, value, merge: bool = False) -> str | None:
+        """Set one style parameter (what a panel widget does); see ``set_style``.  ``merge``:
+        the widget is still being dragged, so this continues the last undo step."""
         try:
             style = replace_at(self.style, path, value)
         except StyleError as e:
             self._report(str(e))
             return None
-        return self.set_style(style)
+        return self.apply(style, key=path, merge=merge)
 
     def save_style(self, path=None) -> Path:
         """Write the style in effect as TOML (atomically), in the style file's own text with the
@@ -218,9 +305,34 @@ class Viewer:
         current = get_at(self.style, paths[0]).attribute
         name = names[(names.index(current) + 1) % len(names)] if current in names else names[0]
         lo, hi = self.value_range(name)
-        self.set_style(with_color_attribute(self.style, name, (lo, hi)))
+        self.apply(with_color_attribute(self.style, name, (lo, hi)))
         self.message = f"colour: {name} over [{lo:.4g}, {hi:.4g}]"
         return name
+
+    def color_map(self):
+        """The first colour-mapped colour (what the colour read-out and legend show), or None."""
+        paths = colormapped(self.style)
+        return get_at(self.style, paths[0]) if paths else None
+
+    def set_color_range(self, value_range=None, merge: bool = False) -> str | None:
+        """Every colour-mapped colour of the shown attribute over ``value_range`` (None: the
+        attribute's data range)."""
+        cm = self.color_map()
+        if cm is None:
+            return None
+        if value_range is None:
+            value_range = self.value_range(cm.attribute)
+        lo, hi = (float(v) for v in value_range)
+        style = self.style
+        for path in colormapped(style):
+            c = get_at(style, path)
+            if c.attribute == cm.attribute:
+                try:
+                    style = replace_at(style, path + ("range",), (lo, hi))
+                except StyleError as e:
+                    self._report(str(e))
+                    return None
+        return self.apply(style, key="colour range", merge=merge)
 
     # -- camera and keys --------------------------------------------------------------------------
     def reset_camera(self) -> None:
@@ -231,14 +343,54 @@ class Viewer:
         if button == glfw.MOUSE_BUTTON_LEFT and not mods & glfw.MOD_SHIFT:
             self.camera = orbit.orbit(self.camera, dx, dy)
         else:
-            self.camera = orbit.pan(self.camera, dx, dy, self.renderer.bounds, self.size)
+            self.camera = orbit.pan(self.camera, dx, dy, self.renderer.bounds, self.scene_size)
+        self.wake()
 
-    def on_scroll(self, steps: float) -> None:
-        """Scroll up (steps > 0) zooms in."""
-        self.camera = orbit.zoom(self.camera, steps, self.renderer.bounds, self.size)
+    def on_scroll(self, steps: float, at: tuple[float, float] | None = None) -> None:
+        """Scroll up (steps > 0) zooms in, towards scene pixel ``at`` (the cursor; None: the
+        centre of the scene)."""
+        if at is None:
+            self.camera = orbit.zoom(self.camera, steps, self.renderer.bounds, self.scene_size)
+        else:
+            self.camera = orbit.zoom_at(self.camera, steps, self.renderer.bounds,
+                                        self.scene_size, *at)
+        self.wake()
+
+    # glfw key -> (its name, what it does); Ctrl+Z, Ctrl+Shift+Z, Ctrl+S besides
+    KEYS: ClassVar = {
+        glfw.KEY_R: ("R", "reset camera"), glfw.KEY_S: ("S", "screenshot"),
+        glfw.KEY_C: ("C", "next colour attribute"), glfw.KEY_A: ("A", "orientation axes"),
+        glfw.KEY_B: ("B", "outline"), glfw.KEY_P: ("P", "probe on hover"),
+        glfw.KEY_H: ("H", "hide/show the panel"), glfw.KEY_ESCAPE: ("Esc", "quit")}
+    _TOGGLES: ClassVar = {"axes": "show_axes", "outline": "show_outline",
+                          "probe": "probe_on_hover", "panel": "show_panel"}
+    _TOGGLE_KEYS: ClassVar = {glfw.KEY_A: "axes", glfw.KEY_B: "outline", glfw.KEY_P: "probe",
+                              glfw.KEY_H: "panel"}
+
+    def shown(self, what: str) -> bool:
+        """Whether "axes", "outline", "probe" (on hover) or "panel" is on."""
+        return getattr(self, self._TOGGLES[what])
+
+    def toggle(self, what: str) -> None:
+        setattr(self, self._TOGGLES[what], not self.shown(what))
+        if what == "probe" and not self.probe_on_hover and not self.probe_pinned:
+            self.probe = None
+        self.wake()
 
     def on_key(self, key: int, action: int = glfw.PRESS, mods: int = 0) -> None:
-        """R reset camera, S screenshot, C next colour attribute, Esc quit (glfw key codes)."""
+        """``KEYS`` and Ctrl+Z undo, Ctrl+Shift+Z (or Ctrl+Y) redo, Ctrl+S save style (glfw key
+        codes and modifier bits)."""
+        if action not in (glfw.PRESS, glfw.REPEAT):
+            return
+        self.wake()
+        if mods & glfw.MOD_CONTROL:
+            if key == glfw.KEY_Z:
+                self.redo() if mods & glfw.MOD_SHIFT else self.undo()
+            elif key == glfw.KEY_Y:
+                self.redo()
+            elif key == glfw.KEY_S and action == glfw.PRESS:
+                self.save_style()
+            return
         if action != glfw.PRESS:
             return
         if key == glfw.KEY_ESCAPE:
@@ -249,6 +401,29 @@ class Viewer:
             self.message = f"saved {self.screenshot()}"
         elif key == glfw.KEY_C:
             self.cycle_color_attribute()
+        elif key in self._TOGGLE_KEYS:
+            self.toggle(self._TOGGLE_KEYS[key])
+
+    # -- probe ------------------------------------------------------------------------------------
+    def pick(self, x: float, y: float, wait: bool = True) -> int | None:
+        """The vertex drawn under scene pixel (x, y) (y down; within 8 px), or None.  ``wait``:
+        False returns None while the spatial index is still being built."""
+        if not wait and not self.picker.ready:
+            return None
+        setup = self.camera.setup(self.renderer.bounds, *self.scene_size)
+        return self.picker.pick(setup, self.scene_size, x, y, self.renderer.bounds)
+
+    def probe_at(self, x: float, y: float, pin: bool = True) -> list[str] | None:
+        """Probe the vertex under scene pixel (x, y): it is shown (marked, with its read-out)
+        and its read-out returned; None (and nothing shown) when no line is there."""
+        self.probe = self.pick(x, y)
+        self.probe_pinned = pin and self.probe is not None
+        self.wake()
+        return self.probe_lines() or None
+
+    def probe_lines(self) -> list[str]:
+        """The read-out of the probed vertex (``probe.describe``), [] when there is none."""
+        return [] if self.probe is None else describe(self.lines, self.probe, self.units)
 
     def screenshot(self, path=None) -> Path:
         """Write the scene (without the panel) as PNG, atomically; by default the first free
@@ -258,8 +433,18 @@ class Viewer:
             while (self.screenshot_dir / f"flowkit-view-{k:03d}.png").exists():
                 k += 1
             path = self.screenshot_dir / f"flowkit-view-{k:03d}.png"
-        self._draw_scene()
-        return save_png(self.renderer.read(), path)
+        return save_png(self.image(), path)
+
+    def image(self) -> np.ndarray:
+        """The scene as the window shows it, overlays included, without the panel: (H, W, 4)
+        uint8, top row first (what S saves)."""
+        with self.ctx:
+            self._draw_scene()
+            self._update_overlays()
+            fbo = self.overlays.compose(self.renderer.output())
+            w, h = fbo.size
+            data = fbo.read(components=4, alignment=1)
+        return np.frombuffer(data, np.uint8).reshape(h, w, 4)[::-1].copy()
 
     @property
     def should_close(self) -> bool:
@@ -274,27 +459,43 @@ class Viewer:
                                       or glfw.get_key(self.window, glfw.KEY_RIGHT_SHIFT)) else 0
             k = self._pixel_scale  # window coordinates -> framebuffer pixels (HiDPI)
             self.on_drag(k * (x - self._cursor[0]), k * (y - self._cursor[1]), self._drag, mods)
+            self._hover = None
+        elif not imgui.get_io().want_capture_mouse:
+            self._hover = self._scene_xy(x, y)
         self._cursor = (x, y)
+        self.wake()
+
+    def _scene_xy(self, x: float, y: float) -> tuple[float, float]:
+        """Window coordinates -> scene pixels (y down)."""
+        k = self._pixel_scale
+        return k * x - self.scene_origin, k * y
 
     def _button_cb(self, _win, button, action, _mods) -> None:
         imgui.set_current_context(self._imgui)
         io = imgui.get_io()
         if 0 <= button < 5:
             io.add_mouse_button_event(button, action == glfw.PRESS)
+        self.wake()
         if action == glfw.PRESS and not io.want_capture_mouse and self._drag is None:
             self._drag = button
+            self._press = self._cursor
         elif action == glfw.RELEASE and button == self._drag:
             self._drag = None
+            if button == glfw.MOUSE_BUTTON_LEFT and self._cursor == self._press and self._cursor:
+                self.probe_at(*self._scene_xy(*self._cursor))  # a click pins (or clears) it
+            self._hover = self._scene_xy(*self._cursor) if self._cursor else None
 
     def _scroll_cb(self, _win, dx, dy) -> None:
         imgui.set_current_context(self._imgui)
         io = imgui.get_io()
         io.add_mouse_wheel_event(dx, dy)
+        self.wake()
         if not io.want_capture_mouse:
-            self.on_scroll(dy)
+            self.on_scroll(dy, None if self._cursor is None else self._scene_xy(*self._cursor))
 
     def _key_cb(self, _win, key, _scancode, action, mods) -> None:
         imgui.set_current_context(self._imgui)
+        self.wake()
         io = imgui.get_io()
         for mod, ikey in ((glfw.MOD_CONTROL, imgui.Key.mod_ctrl), (glfw.MOD_SHIFT,
                           imgui.Key.mod_shift), (glfw.MOD_ALT, imgui.Key.mod_alt)):
@@ -308,14 +509,23 @@ class Viewer:
     def _char_cb(self, _win, codepoint) -> None:
         imgui.set_current_context(self._imgui)
         imgui.get_io().add_input_character(codepoint)
+        self.wake()
 
     # -- frames -----------------------------------------------------------------------------------
     def _draw_scene(self) -> None:
-        key = (id(self.style), self.camera, tuple(self.size))
+        size = tuple(self.scene_size)
+        key = (id(self.style), self.camera, size, self.show_outline)
         if key == self._scene_key:
             return
         t0 = time.perf_counter()
-        self.renderer.draw(self.style, tuple(self.size), self.camera)
+        self.renderer.draw(self.style, size, self.camera)
+        if self.show_outline:  # into the lines' own target, against their depth
+            ms, out = self.renderer._targets(size, self.renderer.samples_for(self.style))
+            (ms or out).use()
+            self.outline.draw(self.camera.setup(self.renderer.bounds, *size),
+                              self.style.background)
+            if ms is not None:
+                self.ctx.copy_framebuffer(out, ms)
         self.scene_time = time.perf_counter() - t0
         self.scene_draws += 1
         self._scene_key = key
@@ -323,6 +533,63 @@ class Viewer:
     def invalidate(self) -> None:
         """Draw the scene again at the next frame (it is otherwise kept while nothing changes)."""
         self._scene_key = None
+        self.wake(1)
+
+    def _overlay(self, name: str, key, make, place) -> None:
+        """Overlay ``name`` with the image ``make()`` (made again only when ``key`` changes) at
+        ``place(w, h)``; ``key`` None removes it."""
+        if key is None:
+            self.overlays.remove(name)
+            self._overlay_keys.pop(name, None)
+            return
+        o = self.overlays.overlays.get(name)
+        image = o.image if o is not None and self._overlay_keys.get(name) == key else make()
+        self._overlay_keys[name] = key
+        h, w = image.shape[:2]
+        self.overlays.set(name, image, place(w, h))
+
+    def _update_overlays(self) -> None:
+        sw, sh = self.scene_size
+        setup = self.camera.setup(self.renderer.bounds, sw, sh)
+        view = np.round(setup.view[:3, :3], 4)
+        self._overlay("axes", view.tobytes() if self.show_axes else None,
+                      lambda: axes_image(view), lambda w, h: (MARGIN, sh - h - MARGIN))
+        # the colour read-out, top right; a legend image goes in the same place:
+        # self._overlay("legend", key, make_legend, lambda w, h: (sw - w - MARGIN, MARGIN))
+        cm = self.color_map()
+        text = None
+        if cm is not None:
+            u = self.units.get(cm.attribute, "")
+            text = (f"colour: {cm.attribute}{f' [{u}]' if u and u != '1' else ''}\n"
+                    f"{cm.range[0]:.4g} to {cm.range[1]:.4g} ({cm.cmap})")
+        self._overlay("colour", text, lambda: text_image(text),
+                      lambda w, h: (sw - w - MARGIN, MARGIN))
+        self._update_probe(setup)
+
+    def _update_probe(self, setup) -> None:
+        key = (self._scene_key, self._hover, self.probe_on_hover)
+        if (self.probe_on_hover and not self.probe_pinned and self._hover is not None
+                and key != self._probe_key and self._drag is None):
+            self.probe = self.pick(*self._hover, wait=False)
+        self._probe_key = key
+        if self.probe is None:
+            for name in ("probe", "probe marker"):
+                self._overlay(name, None, None, None)
+            return
+        sw, sh = self.scene_size
+        clip = setup.proj @ setup.view @ np.r_[self.lines.points[self.probe], 1.0]
+        if clip[3] <= 0:  # behind the eye
+            clip[3] = 1e-9
+        x = (clip[0] / clip[3] + 1) / 2 * sw
+        y = (1 - clip[1] / clip[3]) / 2 * sh
+        text = "\n".join(self.probe_lines())
+        if self.probe_pinned:
+            text += "\n(pinned: click elsewhere to clear)"
+        self._overlay("probe marker", "ring", ring_image,
+                      lambda w, h: (round(x - w / 2), round(y - h / 2)))
+        self._overlay("probe", text, lambda: text_image(text, background=(20, 20, 24, 215)),
+                      lambda w, h: (int(min(max(x + 14, 0), max(sw - w, 0))),
+                                    int(min(max(y + 14, 0), max(sh - h, 0)))))
 
     def step(self, read_screen: bool = False) -> np.ndarray | None:
         """One frame.  ``read_screen``: return the window's image (scene + panel) as (H, W, 4)
@@ -347,13 +614,21 @@ class Viewer:
         self._last = t0
         imgui.backends.opengl3_new_frame()
         imgui.new_frame()
-        self.panel.draw()  # may edit the style or save it
+        if self.show_panel:
+            self.panel.draw()  # may edit the style or save it; measures its width
         imgui.render()
+        self._wake = max(self._wake - 1, 0)
+        x0 = min(round(self.panel_width), fw - 1) if self.show_panel else 0
+        self.scene_origin, self.scene_size = x0, (fw - x0, fh)
         with self.ctx:
             self._draw_scene()
+            self._update_overlays()
+            composed = self.overlays.compose(self.renderer.output())
             screen = self.ctx.detect_framebuffer(0)  # the window's, at its current size
-            self.ctx.copy_framebuffer(screen, self.renderer.output())
             screen.use()
+            self.ctx.viewport = (0, 0, fw, fh)
+            screen.clear(0.0, 0.0, 0.0, 1.0)
+            self.overlays.show(composed, (x0, 0, fw - x0, fh))
             self.ctx.viewport = (0, 0, fw, fh)
             imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
             image = None
@@ -370,14 +645,28 @@ class Viewer:
         with self.ctx:
             self.ctx.finish()
 
+    def loop(self, seconds: float | None = None) -> None:
+        """Frames while something happens, until the window is closed (or ``seconds`` passed).
+        Idle, it sleeps until an event, polling the style file every IDLE_POLL seconds."""
+        end = None if seconds is None else time.perf_counter() + seconds
+        while not self.should_close and (end is None or time.perf_counter() < end):
+            imgui.set_current_context(self._imgui)
+            typing = bool(imgui.get_io().want_text_input)  # the text cursor blinks
+            if self._wake <= 0 or typing:
+                timeout = 1 / 30 if typing else IDLE_POLL
+                if end is not None:
+                    timeout = max(min(timeout, end - time.perf_counter()), 0.0)
+                glfw.wait_events_timeout(timeout)  # the callbacks wake() on input
+                if self.watch.changed():
+                    self.reload()
+                if self._wake <= 0 and not typing:
+                    continue
+            self.step()
+
     def run(self) -> None:
-        """Frames until the window is closed (Esc or the close button)."""
+        """Frames until the window is closed (Esc or the close button), then free it."""
         try:
-            while not self.should_close:
-                drawn = self.scene_draws
-                self.step()
-                if self.scene_draws == drawn:  # idle: sleep until an event (or 30 Hz, the watch)
-                    glfw.wait_events_timeout(1 / 30)
+            self.loop()
         finally:
             self.close()
 
@@ -389,6 +678,8 @@ class Viewer:
         imgui.set_current_context(self._imgui)
         imgui.backends.opengl3_shutdown()
         imgui.destroy_context(self._imgui)
+        self.overlays.release()
+        self.outline.release()
         self.renderer.release()
         glfw.destroy_window(self.window)
         self.window = None

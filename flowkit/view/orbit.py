@@ -62,3 +62,25 @@ def pan(cam: Camera, dx: float, dy: float, bounds: np.ndarray, size: tuple[int, 
     if not all(math.isfinite(v) for v in new):
         return cam
     return dataclasses.replace(cam, target=tuple(float(v) for v in new), zoom=z)
+
+
+def zoom_at(cam: Camera, steps: float, bounds: np.ndarray, size: tuple[int, int], x: float,
+            y: float) -> Camera:
+    """Zoom like ``zoom`` about the point under scene pixel (x, y) (y down) instead of the image
+    centre: the camera is scaled about that point (on the target's depth plane), so it stays
+    under the cursor."""
+    f = ZOOM_STEP ** steps
+    cam = pinned(cam, bounds, size)
+    s = cam.setup(bounds, *size)
+    w, h = size
+    px = s.px_scale[0] * cam.distance + s.px_scale[1]
+    old = np.asarray(cam.target, float)
+    p = old + px * ((x - w / 2) * s.view[0, :3] - (y - h / 2) * s.view[1, :3])
+    new = p + f * (old - p)
+    if not all(math.isfinite(v) for v in new):
+        return cam
+    target = tuple(float(v) for v in new)
+    if cam.projection == "orthographic":  # the view height follows the radius about the target
+        z = cam.zoom / f * _radius(bounds, new) / _radius(bounds, old)
+        return dataclasses.replace(cam, target=target, zoom=z)
+    return dataclasses.replace(cam, target=target, distance=cam.distance * f)

@@ -1,6 +1,12 @@
-"""The Dear ImGui panel: frame time, messages and errors, the style's parameters (edited through
-``Viewer.edit``), "save style", and the keys.  Widgets come from ``edit.params``: one per Param
-kind, so a new style parameter needs a Param, not new panel code."""
+"""The Dear ImGui panel, docked on the window's left (the scene is the rest): frame time,
+messages and errors, "save style", undo/redo, what is shown (axes, outline, probe), the colour
+attribute and its range, then the style's parameters (edited through ``Viewer.edit``).  Widgets
+come from ``edit.params``: one per Param kind, so a new style parameter needs a Param, not new
+panel code.
+
+Numbers are kept as the panel shows them: a dragged or typed float is the decimal its widget
+displays (``shown``), a colour channel the 0-255 step its widget displays, so "save style"
+writes ``4.072``, not the float32 the widget worked in (4.072000026702881)."""
 
 from __future__ import annotations
 
@@ -8,6 +14,7 @@ import functools
 import math
 
 import glfw
+import numpy as np
 from imgui_bundle import imgui
 
 from ..render.shapes import SHAPE_NAMES
@@ -18,6 +25,7 @@ from .edit import get_at, params
 COLORMAPS = ("viridis", "magma", "inferno", "plasma", "cividis", "turbo", "bupu", "ylorrd",
              "gray")
 ERROR_COLOR = imgui.ImVec4(1.0, 0.35, 0.3, 1.0)
+PANEL_WIDTH = 340  # px at first
 
 _KEYS = {glfw.KEY_TAB: imgui.Key.tab, glfw.KEY_LEFT: imgui.Key.left_arrow,
          glfw.KEY_RIGHT: imgui.Key.right_arrow, glfw.KEY_UP: imgui.Key.up_arrow,
@@ -45,16 +53,49 @@ def _float_speed(value: float) -> float:
     return max(abs(value) * 0.01, 1e-3)
 
 
+def number_format(value: float) -> str:
+    """The widget's printf format: at least 3 decimals, 4 significant digits for small values."""
+    a = abs(float(value))
+    decimals = 3 if not math.isfinite(a) or a == 0 else 3 - math.floor(math.log10(a))
+    return f"%.{min(max(decimals, 3), 9)}f"
+
+
+def shown(x: float, fmt: str) -> float:
+    """The number a widget with ``fmt`` shows for ``x`` (the float32 ImGui works in), as a
+    float: what is kept and saved."""
+    return float(fmt % x) if math.isfinite(x) else float(x)
+
+
+def shown_color(c) -> tuple[float, ...]:
+    """A colour as the colour widget shows it: channels in steps of 1/255."""
+    return tuple(round(min(max(float(x), 0.0), 1.0) * 255) / 255 for x in c)
+
+
+def keep_unedited(new, old, show) -> tuple[float, ...]:
+    """Components a multi-value widget handed back: the ones not edited (equal in float32,
+    what ImGui holds) stay exactly as they were; the edited ones as shown."""
+    return tuple(o if np.float32(n) == np.float32(o) else x
+                 for n, o, x in zip(new, old, show(new)))
+
+
 class Panel:
     def __init__(self, viewer):
         self.viewer = viewer
+        self._active = None  # the path of the widget being dragged (one undo step)
 
     def draw(self) -> None:
         v = self.viewer
-        imgui.set_next_window_pos(imgui.ImVec2(8, 8), imgui.Cond_.first_use_ever)
-        height = imgui.get_io().display_size.y - 16
-        imgui.set_next_window_size(imgui.ImVec2(340, height), imgui.Cond_.first_use_ever)
-        imgui.begin("flowkit view")
+        io = imgui.get_io()
+        height = io.display_size.y
+        imgui.set_next_window_pos(imgui.ImVec2(0, 0), imgui.Cond_.always)
+        imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, height), imgui.Cond_.first_use_ever)
+        # docked: full height, only the width is the user's (drag the right edge)
+        imgui.set_next_window_size_constraints(imgui.ImVec2(200, height),
+                                               imgui.ImVec2(max(io.display_size.x - 50, 200),
+                                                            height))
+        imgui.begin("flowkit view", None, imgui.WindowFlags_.no_move
+                    | imgui.WindowFlags_.no_collapse)
+        v.panel_width = imgui.get_window_width() * io.display_framebuffer_scale.x
         imgui.push_item_width(-135)  # widgets leave room for their labels
         imgui.text(f"frame {1e3 * v.frame_time:.1f} ms, scene {1e3 * v.scene_time:.1f} ms")
         imgui.text(f"{v.renderer.n_drawn} of {v.lines.n_points} vertices drawn")
@@ -74,13 +115,69 @@ class Panel:
         imgui.same_line()
         if imgui.button("colour attribute"):
             v.cycle_color_attribute()
+        n_undo, n_redo = v.history.counts
+        imgui.begin_disabled(n_undo == 0)
+        if imgui.button(f"undo ({n_undo})"):
+            v.undo()
+        imgui.end_disabled()
+        imgui.same_line()
+        imgui.begin_disabled(n_redo == 0)
+        if imgui.button(f"redo ({n_redo})"):
+            v.redo()
+        imgui.end_disabled()
         imgui.push_text_wrap_pos(0.0)
-        imgui.text_disabled("drag: orbit, right/shift drag: pan, scroll: zoom; R reset camera, "
-                            "S screenshot, C colour attribute, Esc quit")
+        keys = ", ".join(f"{k} {what}" for k, what in v.KEYS.values())
+        imgui.text_disabled("left drag: orbit, right/shift drag: pan, wheel: zoom at the cursor, "
+                            f"click: pin the probe; {keys}; Ctrl+Z undo, Ctrl+Shift+Z redo, "
+                            "Ctrl+S save style")
         imgui.pop_text_wrap_pos()
+        self._view()
         self._params()
         imgui.pop_item_width()
         imgui.end()
+
+    def _view(self) -> None:
+        """What is shown besides the lines, and the colour attribute's range."""
+        v = self.viewer
+        if not imgui.collapsing_header("view", imgui.TreeNodeFlags_.default_open):
+            return
+        for label, what in (("orientation axes (A)", "axes"), ("outline (B)", "outline"),
+                            ("probe on hover (P)", "probe")):
+            if imgui.checkbox(label, v.shown(what))[0]:
+                v.toggle(what)
+        if v.probe is not None:
+            imgui.text_wrapped("probe: " + "; ".join(v.probe_lines()))
+        cm = v.color_map()
+        if cm is None:
+            return
+        imgui.text(f"colour: {cm.attribute} ({cm.cmap})")
+        lo, hi = cm.range
+        changed, r = self._range("colour range", (lo, hi))
+        if changed:
+            self.viewer.set_color_range(r, merge=self._merge("colour range"))
+        self._settle("colour range")
+        if imgui.button("data range"):
+            v.set_color_range(None)
+
+    def _merge(self, key) -> bool:
+        """True when this change continues the drag of the same widget (one undo step)."""
+        merge = self._active == key
+        self._active = key
+        return merge
+
+    def _settle(self, key) -> None:
+        if imgui.is_item_deactivated() and self._active == key:
+            self._active = None
+
+    def _range(self, label, value):
+        lo, hi = value
+        finite = [x for x in (lo, hi) if math.isfinite(x)]
+        big = max(finite, key=abs) if finite else 0.0
+        speed = _float_speed(big) if finite else 1e-3
+        fmt = number_format(min((abs(x) for x in finite if x), default=big) or big)
+        changed, r = imgui.drag_float2(label, [lo, hi], speed, format=fmt)
+        r = keep_unedited(r, value, lambda r: [shown(x, fmt) for x in r])
+        return changed and r[0] != r[1] and r != (lo, hi), r
 
     def _params(self) -> None:
         group = None
@@ -93,29 +190,29 @@ class Panel:
                 continue
             imgui.push_id(repr(p.path))
             changed, value = self._widget(p)
-            imgui.pop_id()
             if changed and p.kind == "attribute":  # a new attribute comes with its data range
                 cm = get_at(self.viewer.style, p.path[:-1])
                 self.viewer.edit(p.path[:-1], ColorMap(cm.cmap, value,
                                                        self.viewer.value_range(value)))
             elif changed:
-                self.viewer.edit(p.path, value)
+                self.viewer.edit(p.path, value, merge=self._merge(p.path))
+            self._settle(p.path)
+            imgui.pop_id()
 
     def _widget(self, p):
         v = self.viewer
         if p.kind == "float":
             low = -math.inf if p.low is None else p.low
-            changed, x = imgui.drag_float(p.label, p.value, _float_speed(p.value))
-            return changed, float(max(x, low))
+            fmt = number_format(p.value)
+            changed, x = imgui.drag_float(p.label, p.value, _float_speed(p.value), format=fmt)
+            x = max(shown(x, fmt), low)
+            return changed and x != p.value, x
         if p.kind == "color":
             changed, c = imgui.color_edit4(p.label, list(p.value))
-            return changed, tuple(min(max(float(x), 0.0), 1.0) for x in c)
+            c = keep_unedited(c, p.value, shown_color)
+            return changed and c != tuple(p.value), c
         if p.kind == "range":
-            lo, hi = p.value
-            finite = [x for x in (lo, hi) if math.isfinite(x)]
-            speed = _float_speed(max(finite, key=abs)) if finite else 1e-3
-            changed, r = imgui.drag_float2(p.label, [lo, hi], speed)
-            return changed and r[0] != r[1], (float(r[0]), float(r[1]))
+            return self._range(p.label, p.value)
         if p.kind in ("cmap", "shape", "attribute"):
             items = {"cmap": _colormaps(), "shape": list(SHAPE_NAMES), "attribute": v.color_attributes}[p.kind]
             if p.value not in items:
@@ -123,3 +220,4 @@ class Panel:
             changed, k = imgui.combo(p.label, items.index(p.value), items)
             return changed, items[k]
         raise ValueError(f"no widget for parameter kind {p.kind!r}")
+
