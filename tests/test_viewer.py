@@ -360,7 +360,8 @@ def test_screenshot_key_writes_png(fresh):
     fresh.on_key(glfw.KEY_S)
     shots = sorted(fresh.screenshot_dir.glob("flowkit-view-*.png"))
     assert [p.name for p in shots][-2:] == ["flowkit-view-000.png", "flowkit-view-001.png"]
-    img = np.asarray(Image.open(shots[-1]))
+    with Image.open(shots[-1]) as im:
+        img = np.asarray(im)
     assert img.shape == (SIZE[1], SIZE[0], 4)
     np.testing.assert_array_equal(img, fresh.image())  # the scene with its overlays
     x0, y0, x1, y1 = fresh.overlays.box("axes")
