@@ -1,4 +1,4 @@
-"""Issue 3's work–precision benchmark: flowkit against VTK's vtkStreamTracer, streamtracer and
+"""The work–precision benchmark: flowkit against VTK's vtkStreamTracer, streamtracer and
 scipy on identical work, in one process.
 
 ABC flow on [0, 6 pi]^3 at 128 nodes per period (385^3 nodes, float64), 2000 seeds, lines of

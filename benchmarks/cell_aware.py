@@ -1,4 +1,4 @@
-"""Cell-aware stepping on and off, measured on the issue-3 ABC problem (flowkit only).
+"""Cell-aware stepping on and off, measured on the ABC benchmark problem (flowkit only).
 
 For each method x tolerance x stepping mode (cell-aware with steps across faces where the error
 estimate allows, the default; cell-aware with every step ending on a face; plain): accepted and rejected steps per line, median and 90th

@@ -1,7 +1,7 @@
 """Shared pieces of the benchmarks: the ABC grid, seeds, the tight reference, errors at a fixed
 arc length, timing, machine description and table output.
 
-The error measure of issue 3: every tool traces the same seeds through the same trilinear
+The error measure: every tool traces the same seeds through the same trilinear
 interpolant of ABC flow; its point at arc length ``length`` is compared with the point a tight
 DOP853 (scipy, rtol = atol = 1e-12) reaches on that same interpolant, integrated in arc length
 (dx/ds = v/|v|).  So the error is integration error only; interpolation error (grid against the

@@ -1,6 +1,6 @@
 """How much faster lines in lock-step could be: a bare RK4 that advances W lines side by side
 (one stage of all of them at a time, so that LLVM vectorizes the lane loop with gathers and the
-corner loads of different lines overlap) next to flowkit's rk4 on the issue-3 problem.
+corner loads of different lines overlap) next to flowkit's rk4 on the ABC benchmark problem.
 
 The probe does only what an interior step needs (no cell cache, no boundary or NaN handling, a
 fixed number of steps, no vertex output), so its times are a bound for a lock-step kernel, not a
