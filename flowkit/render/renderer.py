@@ -25,6 +25,7 @@ from ..io.atomic import atomic_path
 from ..lines import Lines
 from .camera import Camera
 from .context import default_context, is_software
+from .ranges import data_range, resolve_ranges
 from .shader_build import (
     BIG,
     TEX_WIDTH,
@@ -49,7 +50,7 @@ from .simplify import (
     slopes,
     split_by_range,
 )
-from .style import Style, StyleError, load_style
+from .style import Range, Style, StyleError, load_style
 
 TOLERANCE = 0.25  # level-of-detail tolerance on software rasterizers, output pixels
 LOD_KEPT = 4  # style importances kept (a world-unit width map's tolerance follows the zoom)
@@ -125,6 +126,7 @@ class LineRenderer:
         self._arc = arc_parameter(self._xyz, self._starts, self._stops)
         self._frame_key = None
         self._ranges: dict[str, float] = {}
+        self._auto: dict[tuple[str, Range], tuple[float, float]] = {}  # ranges from the data
         # moderngl does not switch contexts per call: make ours current around all GL work
         with self.ctx:
             self._points = self._texture(np.c_[lines.points, self._arc].astype(np.float32), 4)
@@ -281,6 +283,18 @@ class LineRenderer:
             r = self._ranges[name] = float(fin.max() - fin.min()) if fin.size else 0.0
         return r
 
+    def value_range(self, name: str, spec: Range = None) -> tuple[float, float]:
+        """The range ``spec`` (None: min..max, "pA..pB": percentiles) of attribute ``name`` over
+        these lines: what a style's colour or width map without numbers spans."""
+        key = (name, spec)
+        if key not in self._auto:
+            self._auto[key] = data_range(self._attr_values(name), spec, name)
+        return self._auto[key]
+
+    def resolve(self, style: Style) -> Style:
+        """``style`` with its ranges from the data replaced by numbers (see ``ranges``)."""
+        return resolve_ranges(_as_style(style), self.value_range)
+
     def _select(self, style: Style, cam, size) -> None:
         """Upload this frame's kept vertices (ids + strip indices), unless unchanged."""
         tol = self.tolerance * style.supersample  # output pixels -> render pixels
@@ -390,6 +404,7 @@ class LineRenderer:
     def draw(self, style: Style, size: tuple[int, int], camera: Camera | None = None):
         """Draw into the (multisampled) target of ``size`` and resolve it; no read-back."""
         ctx = self.ctx
+        style = self.resolve(style)
         flags, prog = self.prepare(style)
         attrs = style.attributes()
         cam = (camera or style.camera).setup(self.bounds, *size)
