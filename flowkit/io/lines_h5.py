@@ -93,7 +93,9 @@ class LinesWriter:
     of 1 MiB per dataset), whatever the total size of the file.
 
     ``attrs`` is run metadata for the root (str, numbers, arrays natively; lists, dicts and None
-    as JSON); ``attrs["length_units"]``, if given, becomes the units of x, y, z (default "1").
+    as JSON); ``attrs["length_units"]``, if given, becomes the units of x, y, z (default "1");
+    ``attrs["units"]`` (JSON {attribute: units}, see ``Lines.units``) becomes the CF ``units``
+    of each attribute's variable, and is read back from them.
 
     The file is written under a temporary name in the same directory and renamed onto ``path``
     by ``close()``; if the ``with`` block raises (or ``abort()`` is called) the temporary file is
@@ -150,7 +152,9 @@ class LinesWriter:
     # -- layout ---------------------------------------------------------------------------------
     def _create(self, comp, chunk_points, chunk_lines):
         f = self._file
-        _put_attrs(f, self.attrs, self.path)  # first: unstorable metadata fails before any work
+        units = json.loads(self.attrs.get("units") or "{}")
+        # first: unstorable metadata fails before any work
+        _put_attrs(f, {k: v for k, v in self.attrs.items() if k != "units"}, self.path)
         ids = iter(range(1 << 30))
         self._obs = nc.create_dimension(f, "obs", 0, next(ids), unlimited=True, chunk=chunk_points)
         self._traj = nc.create_dimension(f, "trajectory", 0, next(ids), unlimited=True,
@@ -199,6 +203,8 @@ class LinesWriter:
         for name, ds in {**self._point_ds, **self._line_ds}.items():
             if name in _LONG_NAMES:
                 ds.attrs["long_name"] = _LONG_NAMES[name]
+            if units.get(name):
+                ds.attrs["units"] = str(units[name])
         seed = self._line_ds["seed_id"]
         seed.attrs["cf_role"] = "trajectory_id"
         if self._synthesize_seed_id:
@@ -484,7 +490,22 @@ def _read(f: h5py.File, path: Path, attributes) -> Lines:
     line_data = {k: vtk["CellData"][k][...] for k in line_names if k in wanted}
     if "reason" in line_data:
         line_data["reason"] = _current_reason_codes(f, line_data["reason"], path)
-    return Lines(points, offsets, point_data, line_data, _get_attrs(f))
+    attrs = _get_attrs(f)
+    units = _units(f)
+    if units:
+        attrs["units"] = json.dumps(units)
+    return Lines(points, offsets, point_data, line_data, attrs)
+
+
+def _units(f: h5py.File) -> dict[str, str]:
+    """The CF ``units`` of every point and line attribute that has them."""
+    out = {}
+    for group in ("VTKHDF/PointData", "VTKHDF/CellData"):
+        for name, ds in f.get(group, {}).items():
+            u = ds.attrs.get("units")
+            if u is not None:
+                out[name] = u.decode() if isinstance(u, bytes) else str(u)
+    return out
 
 
 def _attribute_names(f: h5py.File) -> tuple[list[str], list[str]]:

@@ -256,8 +256,9 @@ def _extend(lines: Lines, fld, seeds: np.ndarray, missing) -> Lines:
     """Add attributes that depend only on the vertices, as the integrator computes them."""
     seed_of = seeds[np.repeat(lines.line_data["seed_id"], lines.lengths)]
     new = _attributes.compute(fld, missing, lines.points, None, None, seed_of)
-    return Lines(lines.points, lines.offsets, {**lines.point_data, **new}, lines.line_data,
-                 lines.attrs)
+    pd = {**lines.point_data, **new}
+    return Lines(lines.points, lines.offsets, pd, lines.line_data,
+                 {**lines.attrs, **_attributes.metadata(fld, pd)})
 
 
 def _out(out: Path, rel: str) -> Path:
