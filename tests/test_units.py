@@ -16,7 +16,7 @@ def _netcdf(path, speed_units="m/s", length_units="m"):
     x = np.linspace(0.0, 1.0, 6)
     y = np.linspace(0.0, 2.0, 7)
     z = np.linspace(0.0, 0.5, 4)
-    X, Y, Z = np.meshgrid(x, y, z, indexing="ij")
+    X, Y, _ = np.meshgrid(x, y, z, indexing="ij")
     dims = ("x", "y", "z")
     ds = xr.Dataset(
         {"u": (dims, np.full(X.shape, 0.2), {"units": speed_units}),

@@ -508,6 +508,14 @@ def _units(f: h5py.File) -> dict[str, str]:
     return out
 
 
+def lines_attributes(path) -> list[str]:
+    """Names of the point and line attributes a lines file holds (nothing else is read)."""
+    path = Path(path)
+    with _open(path) as f:
+        point, line = _attribute_names(f)
+    return point + line
+
+
 def _attribute_names(f: h5py.File) -> tuple[list[str], list[str]]:
     point = list(f["VTKHDF/PointData"]) if "VTKHDF/PointData" in f else []
     cells = f.get("VTKHDF/CellData", {})

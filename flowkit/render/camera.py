@@ -125,10 +125,8 @@ class Camera:
             dist = 3.0 * radius
         elif sphere:  # the tighter of the vertical and horizontal half-angles holds the sphere
             dist = radius / math.sin(min(half_fov, math.atan(math.tan(half_fov) * aspect))) / self.zoom
-        else:  # every corner inside FILL of the half-angles
-            ty = math.tan(half_fov) * FILL
-            fit = float(np.max(np.maximum(np.abs(x) / (ty * aspect), np.abs(y) / ty) + z))
-            dist = max(fit, radius * 1e-6) * grow / self.zoom
+        else:
+            dist = _fit_distance(x, y, z, math.tan(half_fov), aspect, radius) * grow / self.zoom
         eye = centre + dist * d
         view = look_at(eye, centre, up)
         near = max(dist - 1.01 * radius, dist * 1e-3)
@@ -147,6 +145,24 @@ class Camera:
             proj = orthographic(half_h * aspect, half_h, near, far)
             px_a, px_b = 0.0, 2 * half_h / height
         return CameraSetup(view, proj, eye, (px_a, px_b))
+
+
+def _fit_distance(x, y, z, tan_y, aspect, radius) -> float:
+    """Eye distance at which the corners (image axes x, y; z towards the eye) span FILL of the
+    image's limiting side, with none nearer than 4 % to an edge (the view stays on the bounds'
+    centre, so perspective makes the projection a little lopsided)."""
+    def extents(dist):
+        depth = np.maximum(dist - z, 1e-12 * dist)
+        px, py = x / depth / (tan_y * aspect), y / depth / tan_y  # -1..1 on the image
+        return max(np.ptp(px), np.ptp(py)) / 2, max(np.abs(px).max(), np.abs(py).max())
+
+    lo = float(np.max(z)) + 1e-9 * radius
+    hi = max(lo, radius) * 4.0 + radius / tan_y
+    for _ in range(60):  # the smallest distance with span <= FILL and every corner <= 0.96
+        mid = 0.5 * (lo + hi)
+        span, edge = extents(mid)
+        lo, hi = (mid, hi) if span > FILL or edge > 0.96 else (lo, mid)
+    return max(hi, radius * 1e-6)
 
 
 def _screen_axes(d: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

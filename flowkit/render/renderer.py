@@ -381,8 +381,9 @@ class LineRenderer:
 
     @_current
     def render(self, style: Style | str | os.PathLike, size: tuple[int, int] = (1920, 1080),
-               camera: Camera | None = None) -> np.ndarray:
-        """(H, W, 4) uint8 RGBA, row 0 at the top."""
+               camera: Camera | None = None, overlays: bool = False) -> np.ndarray:
+        """(H, W, 4) uint8 RGBA, row 0 at the top.  ``overlays``: with the style's legend and
+        annotations (``overlay``), drawn at the output's resolution."""
         style = _as_style(style)
         w, h = (int(v) for v in size)
         if w < 1 or h < 1:
@@ -398,7 +399,36 @@ class LineRenderer:
         if k > 1:
             img = img.reshape(h, k, w, k, 4).astype(np.float32).mean(axis=(1, 3))
             img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
-        return img
+        return self.overlay(img, style, camera) if overlays else img
+
+    def overlay(self, image: np.ndarray, style: Style, camera: Camera | None = None,
+                scale: float = 1.0) -> np.ndarray:
+        """``image`` (this renderer's picture of ``style``) with the style's legend (when its
+        ``[legend] show``), placed where it covers the fewest drawn pixels unless the style
+        says where, and its annotations: title, the snapshot's time (the lines' metadata
+        ``snapshot_time``), text and a scale bar at the depth of the view's target."""
+        from .legend import annotation_image, composite, legend_image
+
+        style = self.resolve(style)
+        h, w = image.shape[:2]
+        bg = np.array([round(255 * c) for c in (style.background or (0, 0, 0, 0))], int)
+        drawn = np.abs(image.astype(int) - bg).max(axis=2) > 16
+        box = None
+        if style.legend.show:
+            leg, box = legend_image(style, (w, h), units=self.lines.units, scale=scale,
+                                    coverage=drawn)
+            image = composite(image, leg)
+        an = style.annotations
+        t = self.lines.attrs.get("snapshot_time") if an.time else None
+        per_px = None
+        if an.scale_bar:
+            cam = (camera or style.camera).setup(self.bounds, w, h)
+            z = cam.view[2, :3] @ self.bounds.mean(axis=1) + cam.view[2, 3]
+            per_px = cam.px_scale[0] * -z + cam.px_scale[1]
+        text, _ = annotation_image((w, h), style, title=an.title, text=an.text, scale=scale,
+                                   time=None if t is None else float(t), world_per_pixel=per_px,
+                                   length_units=self.lines.attrs.get("length_units"), avoid=box)
+        return composite(image, text)
 
     @_current
     def draw(self, style: Style, size: tuple[int, int], camera: Camera | None = None):
@@ -487,14 +517,15 @@ class LineRenderer:
 
 def render_lines(lines: Lines, style: Style | str | os.PathLike, size=(1920, 1080),
                  camera: Camera | None = None, ctx: moderngl.Context | None = None,
-                 strips: str = "vertex") -> np.ndarray:
+                 strips: str = "vertex", overlays: bool = False) -> np.ndarray:
     """Render ``lines`` with ``style`` (a Style or a TOML path) to an (H, W, 4) uint8 RGBA array.
     ``camera`` overrides the style's camera.  Uses a headless EGL context unless ``ctx`` is given.
     ``strips``: "vertex" or "geometry" shader stage builds the strips (see LineRenderer).
+    ``overlays``: draw the style's legend and annotations (``LineRenderer.overlay``).
     To draw the same lines many times, keep a ``LineRenderer``."""
     style = _as_style(style)
     with LineRenderer(lines, ctx, strips=strips) as r:
-        return r.render(style, size, camera)
+        return r.render(style, size, camera, overlays)
 
 
 def save_png(image: np.ndarray, path: str | os.PathLike) -> Path:
@@ -509,12 +540,32 @@ def save_png(image: np.ndarray, path: str | os.PathLike) -> Path:
     return Path(path)
 
 
-def render_file(path: str | os.PathLike, style: Style | str | os.PathLike, size=(1920, 1080),
-                camera: Camera | None = None, ctx: moderngl.Context | None = None,
-                strips: str = "vertex") -> np.ndarray:
-    """Render a lines HDF5 file, reading only the geometry and the attributes the style uses."""
-    from ..io.lines_h5 import read_lines
+def render_file(path: str | os.PathLike, style: Style | str | os.PathLike | None = None,
+                size=(1920, 1080), camera: Camera | None = None,
+                ctx: moderngl.Context | None = None, strips: str = "vertex",
+                overlays: bool = False) -> np.ndarray:
+    """Render a lines HDF5 file, reading only the geometry and the attributes the style uses.
+    ``style`` None: ``default_style`` for the file's attributes."""
+    from ..io.lines_h5 import lines_attributes, read_lines
 
-    style = _as_style(style)
-    return render_lines(read_lines(path, attributes=style.attributes()), style, size, camera, ctx,
-                        strips)
+    if style is None:
+        names = [a for a in ("speed",) if a in lines_attributes(path)]
+        lines = read_lines(path, attributes=names)
+        style = default_style(names, lines.bounds())
+    else:
+        style = _as_style(style)
+        lines = read_lines(path, attributes=style.attributes())
+    return render_lines(lines, style, size, camera, ctx, strips, overlays)
+
+
+def default_style(attributes, bounds=None) -> Style:
+    """What ``flowkit render`` draws without ``--style``: a 2.5 px core with a 1.5 px black halo
+    set back by 2 % of the ``bounds``' diagonal (so a line cuts those well behind it), the core
+    coloured by speed over its data range (viridis) when the lines have ``speed``, else white."""
+    from .style import Band, ColorMap, LineStyle
+
+    diag = float(np.linalg.norm(np.ptp(np.asarray(bounds, float), axis=1))) if bounds is not None \
+        else 0.0
+    core = ColorMap("viridis", "speed") if "speed" in attributes else (1.0, 1.0, 1.0, 1.0)
+    bands = (Band(core, 2.5), Band((0.0, 0.0, 0.0, 1.0), 1.5, depth_offset=0.02 * diag))
+    return Style(styles={"default": LineStyle(bands)})

@@ -12,6 +12,7 @@ integer/enum template flags -- never pastes a string from it into shader source.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import tomllib
@@ -144,6 +145,30 @@ class Transfer:
     blend: float = 0.0
 
 
+PLACEMENTS = ("auto", "top-left", "top-right", "bottom-left", "bottom-right")
+
+
+@dataclass(frozen=True)
+class Legend:
+    """``[legend]``: ``show`` it (default; drawn where the caller asks for overlays, e.g.
+    ``flowkit render``) at ``placement`` ("auto": the corner where it covers the fewest drawn
+    pixels)."""
+
+    show: bool = True
+    placement: str = "auto"
+
+
+@dataclass(frozen=True)
+class Annotations:
+    """``[annotations]``: a ``title``, the snapshot's ``time`` (``t = 2000 s``, when the lines
+    file knows it), free ``text`` and a ``scale_bar`` in world units."""
+
+    title: str = ""
+    time: bool = True
+    text: str = ""
+    scale_bar: bool = False
+
+
 @dataclass(frozen=True)
 class Style:
     """A whole scene style.  Use :func:`load_style` for files or build it in Python:
@@ -159,6 +184,8 @@ class Style:
     camera: Camera = field(default_factory=Camera)
     transfer: Transfer | None = None
     phase: float = 0.0  # added to every shape's and pattern's s, in periods (animation)
+    legend: Legend = field(default_factory=Legend)
+    annotations: Annotations = field(default_factory=Annotations)
     version: int = STYLE_VERSION
 
     def __post_init__(self):
@@ -317,6 +344,18 @@ def validate(style: Style) -> None:
             _fail(f"{w}.{sname}", "bands", "total width 0", "a positive total width")
     if style.transfer is not None:
         _check_transfer(w, style.transfer, style.styles)
+    lg, an = style.legend, style.annotations
+    if not isinstance(lg.show, bool):
+        _fail(f"{w} [legend]", "show", lg.show, "true or false")
+    if lg.placement not in PLACEMENTS:
+        _fail(f"{w} [legend]", "placement", lg.placement, ", ".join(map(repr, PLACEMENTS)))
+    for k in ("title", "text"):
+        v = getattr(an, k)
+        if not isinstance(v, str) or len(v) > 200 or "\n" in v:
+            _fail(f"{w} [annotations]", k, v, "one line of text (at most 200 characters)")
+    for k in ("time", "scale_bar"):
+        if not isinstance(getattr(an, k), bool):
+            _fail(f"{w} [annotations]", k, getattr(an, k), "true or false")
 
 
 def _check_color(where, key, c) -> None:
@@ -528,7 +567,7 @@ def _line_style_from(where: str, bands) -> LineStyle:
 def style_from_dict(data: dict, where: str = "style") -> Style:
     """Build a Style from parsed TOML (or an equivalent dict)."""
     top = {"version", "units", "scale", "background", "antialias", "samples", "supersample",
-           "camera", "bands", "styles", "transfer", "phase"}
+           "camera", "bands", "styles", "transfer", "phase", "legend", "annotations"}
     _check_keys(where, data, top)
     if "version" not in data:
         raise StyleError(f"{where}: missing key 'version' (this flowkit reads version = {STYLE_VERSION})")
@@ -571,6 +610,11 @@ def style_from_dict(data: dict, where: str = "style") -> Style:
         kw["transfer"] = _transfer_from(where, data["transfer"])
     if "phase" in data:
         kw["phase"] = _number(where, "phase", data["phase"])
+    for key, cls in (("legend", Legend), ("annotations", Annotations)):
+        if key in data:
+            names = {f.name for f in dataclasses.fields(cls)}
+            _check_keys(f"{where} [{key}]", data[key], names)
+            kw[key] = cls(**data[key])
     try:
         return Style(styles=styles, **kw)
     except StyleError as e:  # checks shared with Python-built styles: name the file too
@@ -678,6 +722,10 @@ def style_to_dict(style: Style) -> dict:
     else:
         out["styles"] = {n: {"bands": [_band_out(b) for b in ls.bands]}
                          for n, ls in style.styles.items()}
+    for key in ("legend", "annotations"):
+        val = getattr(style, key)
+        if val != type(val)():
+            out[key] = dataclasses.asdict(val)
     if style.transfer is not None:
         tf = style.transfer
         out["transfer"] = {"attribute": tf.attribute, "blend": tf.blend, "ranges": [

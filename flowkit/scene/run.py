@@ -275,7 +275,7 @@ def _render(plan: Plan, lines: Lines, res: SnapshotResult, out: Path, fmt: dict,
     with LineRenderer(lines, ctx) as r:
         for v in scene.views.values():
             with _Stage(res, f"render {v.name}", report) as st:
-                img = r.render(scene.styles[v.style], v.size, v.camera)
+                img = r.render(scene.styles[v.style], v.size, v.camera, overlays=True)
                 path = _out(out, scene.outputs.images.format(view=v.name, style=v.style, **fmt))
                 res.images[v.name] = save_png(img, path)
                 st.msg = f"{path} ({v.size[0]}x{v.size[1]})"
