@@ -192,3 +192,22 @@ def test_flowkit_render_without_a_style_works_on_every_lines_file(tmp_path, caps
                  "--no-legend", "--view", "iso"]) == 0
     lut = np.rint(colormap_lut("viridis")[:, :3] * 255).astype(int)
     assert _bar_row(np.asarray(Image.open(no_legend)), (0, 0, 240, 160), lut) is None
+
+
+def test_style_files_round_trip_automatic_ranges_legend_and_annotations():
+    from flowkit.render.style import dump_style, style_to_dict
+
+    doc = {"version": 1, "legend": {"show": False, "placement": "bottom-left"},
+           "annotations": {"title": "T", "time": False, "text": "run 3", "scale_bar": True},
+           "camera": {"view": "iso", "fit": "sphere"},
+           "bands": [{"color": {"cmap": "viridis", "attribute": "s"},
+                      "width": {"attribute": "s", "range": "p5..p95", "min": 1, "max": 3}}]}
+    s = style_from_dict(doc)
+    assert s.line_style.bands[0].color.range is None
+    assert style_from_dict(style_to_dict(s)) == s
+    assert "range" not in dump_style(s).split("[[bands]]")[1].split("width")[0]
+    for bad, key in (({"legend": {"placement": "middle"}}, "placement"),
+                     ({"annotations": {"title": "a\nb"}}, "title"),
+                     ({"legend": {"size": 3}}, "unknown key 'size'")):
+        with pytest.raises(StyleError, match=key):
+            style_from_dict({**doc, **bad})

@@ -1,4 +1,8 @@
-"""``flowkit render lines.h5 --style style.toml -o out.png --size 1920x1080 [camera options]``
+"""``flowkit render lines.h5 [--style style.toml] -o out.png --size 1920x1080 [camera options]``
+
+Without ``--style``: lines with a black halo, coloured by speed when the file has it.  The
+picture carries the style's legend (colour bars with names, units and ticks; ``--no-legend``,
+``--legend CORNER``) and annotations (``--title``, ``--text``, ``--time``, ``--scale-bar``).
 
 ``--frames N`` animates the style's shapes and colour patterns (one period over N frames, so it
 loops): ``-o out.png`` writes out_0000.png..., ``-o out.gif`` an animated GIF, ``-o out.mp4`` an
@@ -140,11 +144,11 @@ def _animate(args, style, size, camera, ctx) -> int:
         raise CLIError(f"-o {args.output!r}: with --frames, write {', '.join(FORMATS)} "
                        "(.png: numbered files)")
     if not style.animated:
-        raise CLIError(f"--frames with {args.style}: the style has no band 'shape' or 'pattern' "
-                       "to move along the lines")
+        raise CLIError(f"--frames with {args.style or 'the default style'}: the style has no "
+                       "band 'shape' or 'pattern' to move along the lines")
     lines = read_lines(args.lines, attributes=style.attributes())
     with LineRenderer(lines, ctx, strips=args.strips) as r, tqdm(total=n, unit="frame", desc="render") as bar:
-        paths = write_animation(render_frames(r, style, n, size, camera), args.output, n,
+        paths = write_animation(render_frames(r, style, n, size, camera, True), args.output, n,
                                 args.fps, progress=bar.update)
     where = paths[0] if len(paths) == 1 else f"{paths[0]} ... {paths[-1].name}"
     print(f"wrote {where} ({n} frames, {size[0]}x{size[1]})")

@@ -656,7 +656,9 @@ def _summary(f: h5py.File, path: Path) -> str:
                 text = "  ".join(f"[{lo:.6g}, {hi:.6g}]" for lo, hi in rng)
             else:
                 text = f"[{rng[0][0]:.6g}, {rng[0][1]:.6g}]"
-            out.append(f"    {name:<22} {kind:<12} {text}")
+            u = ds.attrs.get("units")
+            u = f"  {u.decode() if isinstance(u, bytes) else u}" if u is not None else ""
+            out.append(f"    {name:<22} {kind:<12} {text}{u}")
     meta = _get_attrs(f)
     if meta:
         out.append("  metadata:")

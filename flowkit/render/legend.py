@@ -30,15 +30,20 @@ Box = tuple[int, int, int, int]  # x0, y0, x1, y1 (pixels, y down, x1/y1 exclusi
 
 # -- numbers ------------------------------------------------------------------------------------
 def nice_ticks(lo: float, hi: float, n: int = 5) -> list[float]:
-    """About ``n`` round numbers (1, 2 or 5 times a power of ten apart) within [lo, hi]."""
+    """Round numbers within [lo, hi], 1, 2, 2.5 or 5 times a power of ten apart, as close to
+    ``n`` of them as those steps allow (at least two where the range holds two)."""
     a, b = min(lo, hi), max(lo, hi)
     if not (math.isfinite(a) and math.isfinite(b)) or b <= a:
         return [a]
-    raw = (b - a) / max(n - 1, 1)
-    p = 10.0 ** math.floor(math.log10(raw))
-    step = next(m * p for m in (1, 2, 5, 10) if m * p >= raw * 0.999)
-    k0, k1 = math.ceil(a / step - 1e-9), math.floor(b / step + 1e-9)
-    return [k * step for k in range(k0, k1 + 1)]
+    p = 10.0 ** math.floor(math.log10((b - a) / max(n - 1, 1)))
+    best = None
+    for step in (m * p * s for s in (0.1, 1.0, 10.0) for m in (1, 2, 2.5, 5)):
+        k0, k1 = math.ceil(a / step - 1e-9), math.floor(b / step + 1e-9)
+        count = k1 - k0 + 1
+        score = (count < 2, abs(count - n), -step)
+        if best is None or score < best[0]:
+            best = (score, [k * step for k in range(k0, k1 + 1)])
+    return best[1]
 
 
 def round_down(x: float) -> float:
@@ -56,6 +61,8 @@ def tick_labels(ticks: list[float]) -> list[str]:
     if big >= 1e6 or big < 1e-3:
         return [f"{t:.3g}" for t in ticks]
     d = max(0, -math.floor(math.log10(step) + 1e-9))
+    while d < 12 and abs(round(step, d) - step) > 1e-9 * step:  # 0.25 needs two decimals
+        d += 1
     return [f"{0.0 if abs(t) < step * 1e-6 else t:.{d}f}" for t in ticks]
 
 
@@ -143,8 +150,11 @@ def legend_image(style: Style, size: tuple[int, int], *, units: dict[str, str] |
     for m in maps:
         title = label(m.attribute, units) + ("" if isinstance(m, ColorMap) else " (width)")
         lo, hi = m.range
-        ticks = nice_ticks(lo, hi)
-        names = tick_labels(ticks)
+        for n in (5, 4, 3, 2):  # as many ticks as fit under the bar without touching
+            ticks = nice_ticks(lo, hi, n)
+            names = tick_labels(ticks)
+            if sum(small.getlength(t) for t in names) + gap * len(names) <= bar_w:
+                break
 
         def draw(d, x, y, m=m, title=title, lo=lo, hi=hi, ticks=ticks, names=names):
             d.text((x, y), title, font=font, fill=ink)

@@ -716,6 +716,8 @@ def style_to_dict(style: Style) -> dict:
            "supersample": style.supersample, "phase": style.phase}
     cam = {k: list(v) if isinstance(v, tuple) else v
            for k, v in vars(style.camera).items() if v is not None}
+    if style.camera.view is not None:  # the named view replaces azimuth and elevation
+        cam.pop("azimuth"), cam.pop("elevation")
     out["camera"] = cam
     if list(style.styles) == ["default"] and style.transfer is None:
         out["bands"] = [_band_out(b) for b in style.line_style.bands]

@@ -296,7 +296,7 @@ def _animate(scene: Scene, r, res: SnapshotResult, out: Path, fmt: dict, report)
         name = f"animate {v.name}"
         with _Stage(res, name, report) as st:
             path = _out(out, o.animation.format(view=v.name, style=v.style, **fmt))
-            frames = render_frames(r, scene.styles[v.style], o.frames, v.size, v.camera)
+            frames = render_frames(r, scene.styles[v.style], o.frames, v.size, v.camera, True)
             res.animations[v.name] = write_animation(frames, path, o.frames, o.fps,
                                                      progress=_ticker(name, o.frames, report))
             shown = path if len(res.animations[v.name]) == 1 else (
