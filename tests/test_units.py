@@ -59,3 +59,14 @@ def test_openfoam_export_names_units_and_hdf5_keeps_them(tmp_path):
     save_series([fld], tmp_path / "f.h5", single=True)
     back = load_field(tmp_path / "f.h5")
     assert back.units == fld.units and back.length_units == "m"
+
+
+def test_pathlines_carry_units_too():
+    from flowkit.datasets import hotroom_path
+    from flowkit.fields.readers import load_series
+    from flowkit.integrate.pathlines import pathlines
+
+    last_two = load_series(hotroom_path())[-2:]
+    lines = pathlines(last_two, [[5.0, 1.0, 5.0]], attributes=("speed", "T"), max_time=20.0)
+    assert lines.units == {"time": "s", "speed": "m/s", "T": "K"}
+    assert lines.attrs["length_units"] == "m"
