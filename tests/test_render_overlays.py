@@ -212,3 +212,29 @@ def test_style_files_round_trip_automatic_ranges_legend_and_annotations():
                      ({"legend": {"size": 3}}, "unknown key 'size'")):
         with pytest.raises(StyleError, match=key):
             style_from_dict({**doc, **bad})
+
+
+def test_scale_bar_is_a_round_length_at_the_given_scale_and_keys_show_width_and_styles():
+    from flowkit.render import LineStyle, Style, WidthMap
+    from flowkit.render.legend import annotation_image, round_down
+    from flowkit.render.style import Transfer, TransferRange
+
+    s = style(Band((0, 0, 0, 1), 1.0), background=WHITE)
+    img, box = annotation_image((400, 200), s, world_per_pixel=0.02, length_units="m")
+    ink = (img[..., 3] > 0) & (img[..., :3].max(axis=2) < 100)
+    runs = [np.flatnonzero(r) for r in ink]
+    longest = max(runs, key=len)
+    assert round_down(0.2 * 400 * 0.02) == 1.0 and len(longest) == pytest.approx(50, abs=1)
+    assert longest[-1] - longest[0] + 1 == len(longest)  # one solid bar
+    assert ink[box[1]:box[3], box[0]:box[2]].sum() > len(longest) * 3 + 30  # and its label
+    # width key and transfer styles: a wedge and one swatch per named style
+    two = Style(styles={"a": LineStyle((Band(ColorMap("viridis", "s", (0, 1)),
+                                             WidthMap("s", (0, 1), 1, 4)),)),
+                        "b": LineStyle((Band((1, 0, 0, 1), 1.0),))},
+                transfer=Transfer("d", (TransferRange((0, 1), "a"), TransferRange((1, 2), "b"))))
+    leg, box = legend_image(two, (400, 300), units={"d": "m"}, placement="top-left")
+    red = (leg[..., 0] > 200) & (leg[..., 1] < 60) & (leg[..., 2] < 60) & (leg[..., 3] > 0)
+    assert red.sum() > 20  # style b's swatch
+    wedge_rows = (leg[..., :3].max(axis=2) < 60) & (leg[..., 3] > 0)
+    cols = wedge_rows.sum(axis=0)
+    assert cols.max() > 3  # the wedge's wide end is several rows tall
