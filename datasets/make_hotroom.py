@@ -4,7 +4,9 @@
 
 Reads the five foamToVTK snapshots listed in hotroom.vtu.series with flowkit's own .vtu reader
 (the 41 x 21 x 41 node lattice is rebuilt exactly), keeps the node (point) data U, T and p in the
-files' float32, and writes one flowkit HDF5 field file with /snapshots/0000..0004 (gzip + shuffle).
+files' float32, and writes one flowkit HDF5 field file with /snapshots/0000..0004 (gzip + shuffle),
+each array and coordinate with its CF ``units`` (U m/s, T K, p m2/s2 -- kinematic in this
+Boussinesq solver --, x y z m).
 """
 
 import sys
@@ -29,7 +31,10 @@ def main(series=SERIES, out=OUT):
         for n in KEEP:
             # the files store float32: converting back loses nothing
             assert np.array_equal(f.scalars[n].astype(np.float32), f.scalars[n]), n
-        fields.append(Field(f.grid, f.vector, {n: f.scalars[n] for n in KEEP}, time=t))
+        # the reader gives U and T their OpenFOAM units; this solver's p is kinematic
+        units = {**{n: u for n, u in f.units.items() if n in ("U", *KEEP)}, "p": "m2/s2"}
+        fields.append(Field(f.grid, f.vector, {n: f.scalars[n] for n in KEEP}, time=t,
+                            units=units, length_units=f.length_units))
         print(f"t = {t:g}: {path.name}, grid {f.grid.shape}")
     attrs = {
         "title": "OpenFOAM hotRoom (buoyantBoussinesqPimpleFoam), 40 x 20 x 40 cells, node data",

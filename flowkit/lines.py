@@ -38,6 +38,15 @@ class Lines:
             if len(v) != L:
                 raise ValueError(f"line attribute '{k}' has {len(v)} rows, expected {L}")
 
+    @property
+    def units(self) -> dict[str, str]:
+        """Units per attribute (from ``attrs["units"]``, JSON), e.g. {"time": "s"}; a lines file
+        stores each as the CF ``units`` of the attribute's variable."""
+        import json
+
+        u = self.attrs.get("units")
+        return dict(json.loads(u)) if isinstance(u, str) and u.startswith("{") else {}
+
     @classmethod
     def empty(cls) -> Lines:
         return cls(np.zeros((0, 3)), np.zeros(1, np.int64))

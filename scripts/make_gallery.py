@@ -51,7 +51,7 @@ def render_gallery(lines, size, only=None, out=OUT, renderer=None):
         for p in style_paths():
             if only and only not in p.stem:
                 continue
-            yield p, r.render(_load(p), size)
+            yield p, r.render(_load(p), size, overlays=True)
     finally:
         if renderer is None:
             r.release()

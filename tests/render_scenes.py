@@ -7,8 +7,9 @@ import numpy as np
 from flowkit.lines import Lines
 from flowkit.render import Band, Camera, LineStyle, Style
 
-# Looking along +y: x to the right, z up; y is depth (smaller y = nearer the viewer).
-FACE_ON = Camera(azimuth=-90, elevation=0, projection="orthographic")
+# Looking along +y: x to the right, z up; y is depth (smaller y = nearer the viewer).  The
+# bounding sphere fills the image's height (a line from -1 to 1: 50 pixels per unit on 100 rows).
+FACE_ON = Camera(azimuth=-90, elevation=0, up=(0, 0, 1), projection="orthographic", fit="sphere")
 
 
 def straight(a, b, n=64, **attrs) -> Lines:

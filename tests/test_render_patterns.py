@@ -183,7 +183,7 @@ def test_cli_frames_write_numbered_pngs_and_a_looping_gif(tmp_path, capsys):
     write_lines(p.lines, h5)
     sfile = tmp_path / "s.toml"
     sfile.write_text('version = 1\nantialias = "none"\n[camera]\nazimuth = -90\nelevation = 0\n'
-                     'projection = "orthographic"\nzoom = 2.9\n[[bands]]\ncolor = "#ffff00"\n'
+                     'projection = "orthographic"\nfit = "sphere"\nzoom = 2.9\n[[bands]]\ncolor = "#ffff00"\n'
                      'width = 6\npattern = { color = "#0000ff", length = 0.4 }\n')
     args = ["render", str(h5), "--style", str(sfile), "--size", "400x120", "--frames", "4"]
     assert main([*args, "-o", str(tmp_path / "f.png")]) == 0

@@ -135,7 +135,8 @@ def test_world_units_scale_with_zoom_and_pixel_units_do_not():
     world = style(Band(BLACK, 0.1), units="world", background=WHITE, antialias="none")
     pix = style(Band(BLACK, 3.0), background=WHITE, antialias="none")
     for zoom in (1.0, 2.0):
-        cam = Camera(azimuth=-90, elevation=0, projection="orthographic", zoom=zoom)
+        cam = Camera(azimuth=-90, elevation=0, projection="orthographic", zoom=zoom,
+                     fit="sphere")
         px_per_unit = 50 * zoom  # half-height 1/zoom over 50 pixels
         assert _column_width(render_lines(lines, world, SIZE, cam), 100, 255) == pytest.approx(
             2 * 0.1 * px_per_unit, abs=1)

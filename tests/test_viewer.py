@@ -22,6 +22,8 @@ from flowkit.lines import Lines
 from flowkit.render.style import load_style
 
 SIZE = (640, 360)
+# fit = "sphere": the framing stays the same size while the drag orbits (the default, fitting
+# the projected bounds, refits the view for every direction until the orbit pins it)
 BASE = """\
 version = 1
 background = "#000000"
@@ -31,6 +33,7 @@ antialias = "none"
 azimuth = -90
 elevation = 0
 projection = "orthographic"
+fit = "sphere"
 
 [[bands]]
 color = { cmap = "gray", attribute = "speed", range = [0.0, 1.0] }

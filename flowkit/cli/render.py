@@ -1,4 +1,8 @@
-"""``flowkit render lines.h5 --style style.toml -o out.png --size 1920x1080 [camera options]``
+"""``flowkit render lines.h5 [--style style.toml] -o out.png --size 1920x1080 [camera options]``
+
+Without ``--style``: lines with a black halo, coloured by speed when the file has it.  The
+picture carries the style's legend (colour bars with names, units and ticks; ``--no-legend``,
+``--legend CORNER``) and annotations (``--title``, ``--text``, ``--time``, ``--scale-bar``).
 
 ``--frames N`` animates the style's shapes and colour patterns (one period over N frames, so it
 loops): ``-o out.png`` writes out_0000.png..., ``-o out.gif`` an animated GIF, ``-o out.mp4`` an
@@ -7,9 +11,12 @@ MP4 (optional imageio + imageio-ffmpeg).
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import re
 
+from ..render.camera import VIEWS
+from ..render.style import PLACEMENTS
 from . import CLIError
 
 
@@ -37,7 +44,8 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("render", help="render a lines file to PNG with a line style",
                               description=__doc__)
     p.add_argument("lines", help="lines HDF5 file (flowkit trace output)")
-    p.add_argument("--style", required=True, help="TOML style file (see examples/styles/)")
+    p.add_argument("--style", help="TOML style file (see examples/styles/); default: a halo "
+                   "style coloured by speed when the file has it")
     p.add_argument("-o", "--output", required=True, help="PNG to write (atomically)")
     p.add_argument("--size", default="1920x1080", help="WIDTHxHEIGHT in pixels (default 1920x1080)")
     p.add_argument("--supersample", type=int, help="render k times larger and average (print)")
@@ -50,7 +58,18 @@ def register(subparsers) -> None:
     anim.add_argument("--frames", type=int, help="render N frames, the patterns advancing one "
                       "period in all: -o out.png writes out_0000.png..., .gif / .mp4 one file")
     anim.add_argument("--fps", type=float, default=12.0, help="frames per second (GIF/MP4)")
+    over = p.add_argument_group("legend and annotations (override the style's [legend] and "
+                                "[annotations])")
+    over.add_argument("--no-legend", action="store_true", help="draw no legend")
+    over.add_argument("--legend", choices=PLACEMENTS, help="where the legend goes (default auto: "
+                      "the corner where it covers the fewest lines)")
+    over.add_argument("--title", help="a title at the top")
+    over.add_argument("--text", help="free text at the bottom")
+    over.add_argument("--time", action=argparse.BooleanOptionalAction, default=None,
+                      help="the snapshot's time (t = 2000 s) when the lines file knows it")
+    over.add_argument("--scale-bar", action="store_true", help="a scale bar in world units")
     cam = p.add_argument_group("camera (overrides the style file's [camera])")
+    cam.add_argument("--view", choices=VIEWS, help="named view: +x looks along +x, ..., iso")
     cam.add_argument("--azimuth", type=float, help="degrees about the up axis")
     cam.add_argument("--elevation", type=float, help="degrees above the horizontal plane")
     cam.add_argument("--distance", type=float, help="eye distance from the target (default: fit)")
@@ -67,9 +86,17 @@ def run(args) -> int:
     from ..render.style import camera_from_dict
 
     size = _size(args.size)
-    style = load_style(args.style)
+    if args.style is not None:
+        style = load_style(args.style)
+    else:
+        from ..io.lines_h5 import lines_attributes, read_lines
+        from ..render.renderer import default_style
+
+        names = [a for a in ("speed",) if a in lines_attributes(args.lines)]
+        style = default_style(names, read_lines(args.lines, attributes=[]).bounds())
+    style = _overlays(args, style)
     over = {k: getattr(args, k) for k in ("azimuth", "elevation", "distance", "zoom", "fov",
-                                          "projection") if getattr(args, k) is not None}
+                                          "projection", "view") if getattr(args, k) is not None}
     for k in ("target", "up"):
         v = _vec3(k, getattr(args, k))
         if v is not None:
@@ -82,10 +109,23 @@ def run(args) -> int:
     ctx = default_context() if args.context == "egl" else create_context(args.context)
     if args.frames is not None:
         return _animate(args, style, size, camera, ctx)
-    image = render_file(args.lines, style, size, camera, ctx, strips=args.strips)
+    image = render_file(args.lines, style, size, camera, ctx, strips=args.strips, overlays=True)
     path = save_png(image, args.output)
     print(f"wrote {path} ({size[0]}x{size[1]})")
     return 0
+
+
+def _overlays(args, style):
+    """The style's [legend] and [annotations] with the command line's changes."""
+    lg, an = style.legend, style.annotations
+    if args.no_legend:
+        lg = dataclasses.replace(lg, show=False)
+    if args.legend is not None:
+        lg = dataclasses.replace(lg, placement=args.legend)
+    changes = {k: getattr(args, k) for k in ("title", "text", "time") if getattr(args, k) is not None}
+    if args.scale_bar:
+        changes["scale_bar"] = True
+    return dataclasses.replace(style, legend=lg, annotations=dataclasses.replace(an, **changes))
 
 
 def _animate(args, style, size, camera, ctx) -> int:
@@ -104,11 +144,11 @@ def _animate(args, style, size, camera, ctx) -> int:
         raise CLIError(f"-o {args.output!r}: with --frames, write {', '.join(FORMATS)} "
                        "(.png: numbered files)")
     if not style.animated:
-        raise CLIError(f"--frames with {args.style}: the style has no band 'shape' or 'pattern' "
-                       "to move along the lines")
+        raise CLIError(f"--frames with {args.style or 'the default style'}: the style has no "
+                       "band 'shape' or 'pattern' to move along the lines")
     lines = read_lines(args.lines, attributes=style.attributes())
     with LineRenderer(lines, ctx, strips=args.strips) as r, tqdm(total=n, unit="frame", desc="render") as bar:
-        paths = write_animation(render_frames(r, style, n, size, camera), args.output, n,
+        paths = write_animation(render_frames(r, style, n, size, camera, True), args.output, n,
                                 args.fps, progress=bar.update)
     where = paths[0] if len(paths) == 1 else f"{paths[0]} ... {paths[-1].name}"
     print(f"wrote {where} ({n} frames, {size[0]}x{size[1]})")

@@ -21,6 +21,9 @@ class Field:
     ``source`` names where the data came from (a file path, an analytic field) so that errors
     and summaries can say so; ``time`` is the snapshot time when known; ``notes`` records how the
     data was obtained (e.g. "resampled from an unstructured mesh by linear interpolation").
+    ``units`` maps array names (the vector's and the scalars') to the units the file states
+    (UDUNITS/CF spelling, e.g. "m/s", "K"); ``length_units`` are the grid coordinates' units.
+    Unknown units are left out: nothing is guessed.
     """
 
     grid: Grid
@@ -30,6 +33,8 @@ class Field:
     source: str = "<memory>"
     time: float | None = None
     notes: list[str] = field(default_factory=list)
+    units: dict[str, str] = field(default_factory=dict)
+    length_units: str | None = None
 
     def __post_init__(self):
         shape = self.grid.shape

@@ -115,7 +115,9 @@ def save_series(
         if any(g0.periodic):
             h.attrs["period"] = np.array(g0.period)
         for name, c in zip("xyz", g0.axes):
-            h.create_dataset(name, data=c)
+            ds = h.create_dataset(name, data=c)
+            if fields[0].length_units:
+                ds.attrs["units"] = fields[0].length_units
         if single and len(fields) == 1:
             _write_snapshot(h, fields[0], dtype, opts)
             if fields[0].notes:
@@ -129,9 +131,13 @@ def save_series(
 def _write_snapshot(g, field, dtype, opts):
     if field.time is not None:
         g.attrs["time"] = float(field.time)
-    g.create_dataset(f"vectors/{field.vector_name}", data=_cast(field.vector, dtype), **opts)
-    for n, a in field.scalars.items():
-        g.create_dataset(f"scalars/{n}", data=_cast(a, dtype), **opts)
+    arrays = {f"vectors/{field.vector_name}": field.vector,
+              **{f"scalars/{n}": a for n, a in field.scalars.items()}}
+    for key, a in arrays.items():
+        ds = g.create_dataset(key, data=_cast(a, dtype), **opts)
+        unit = field.units.get(key.split("/", 1)[1])
+        if unit:
+            ds.attrs["units"] = unit  # CF: what the readers give back as Field.units
 
 
 # -- VTK XML ---------------------------------------------------------------------------------

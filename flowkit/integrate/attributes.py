@@ -24,6 +24,64 @@ ATTRIBUTES = {
 }
 
 
+def units(field: Field, names) -> dict[str, str]:
+    """CF units of the attributes ``names`` traced in ``field``, where the field's units give
+    them: time in s (when the vector is a length per second in the grid's length), arc length and
+    distance to the seed in the grid's length unit, speed and velocity in the vector's unit,
+    vorticity in the vector's unit per length ("1/s" for m/s on a grid in m), scalars as the
+    file states.  Attributes whose units are not known are left out."""
+    vec, length = field.units.get(field.vector_name), field.length_units
+    per = _per_second(vec)
+    if per is not None and length is not None and per != length:
+        per = None  # a velocity in another length unit than the grid's: time is not in s
+    derived = {"time": "s" if per is not None else None,
+               "arc_length": length, "distance_to_seed": length,
+               "speed": vec, "velocity": vec,
+               "vorticity": _per_length(vec, length), "vorticity_magnitude": _per_length(vec, length)}
+    out = {}
+    for n in names:
+        u = derived.get(n) if n in ATTRIBUTES else field.units.get(n)
+        if u:
+            out[n] = u
+    return out
+
+
+def metadata(field: Field, names) -> dict:
+    """Lines.attrs entries that carry units and time: ``units`` (JSON of ``units``; the lines
+    file writes them as CF ``units`` on each attribute), ``length_units`` (positions) and
+    ``snapshot_time`` (the field's time, when known)."""
+    import json
+
+    out = {}
+    u = units(field, names)
+    if u:
+        out["units"] = json.dumps(u)
+    if field.length_units:
+        out["length_units"] = field.length_units
+    if field.time is not None:
+        out["snapshot_time"] = float(field.time)
+    return out
+
+
+def _per_second(u: str | None) -> str | None:
+    """The length unit of a velocity unit ("m/s", "m s-1", "m.s^-1" -> "m"), else None."""
+    if not u:
+        return None
+    t = u.replace("^", "").replace(".", " ").strip()
+    for tail in ("/s", " s-1", "/ s"):
+        if t.endswith(tail) and t[: -len(tail)].strip():
+            return t[: -len(tail)].strip()
+    return None
+
+
+def _per_length(vec: str | None, length: str | None) -> str | None:
+    if not vec or not length:
+        return None
+    if _per_second(vec) == length:
+        return "1/s"
+    return f"({vec})/{length}"
+
+
 def check(field: Field, names) -> None:
     """Raise a clear error for a name that is neither a known attribute nor a scalar field."""
     for n in names:

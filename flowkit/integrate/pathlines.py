@@ -466,7 +466,7 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
     still = si[:, I_STATUS]
     si[still == RUNNING, I_REASON] = R_LEFT
     si[still == NEW, I_REASON] = R_SEED  # released outside the time range
-    return _assemble(chunks, n, seeds, release, si, opts, times, sources)
+    return _assemble(chunks, n, seeds, release, si, opts, times, sources, fa)
 
 
 def _check_options(opts: TraceOptions, kw) -> TraceOptions:
@@ -562,7 +562,7 @@ def _sampled(names, fa: Field, fb: Field, ta, tb, pts, tv, curls) -> dict:
     return out
 
 
-def _assemble(chunks, n, seeds, release, si, opts, times, sources) -> Lines:
+def _assemble(chunks, n, seeds, release, si, opts, times, sources, field=None) -> Lines:
     """One Lines from the launches' vertices: grouped by line, each in integration order (the
     sweep visits the intervals in that order; backward lines run from the release back in time)."""
     if chunks:
@@ -599,4 +599,7 @@ def _assemble(chunks, n, seeds, release, si, opts, times, sources) -> Lines:
              "snapshot_times": np.asarray(times, np.float64),
              "source": str(sources[0].source if isinstance(sources[0], Field) else sources[0]),
              "reason_names": ",".join(REASON_NAMES)}
+    if field is not None:  # units of the attributes (one snapshot's time does not apply)
+        attrs.update({k: v for k, v in _attributes.metadata(field, pd).items()
+                      if k != "snapshot_time"})
     return Lines(pts, offsets, pd, ld, attrs)

@@ -99,7 +99,7 @@ def _seeds(seeds) -> np.ndarray:
 
 
 def _attrs(field: Field, opts: TraceOptions) -> dict:
-    return {
+    return {**_attributes.metadata(field, opts.attributes),
         "method": opts.method, "rtol": str(opts.rtol), "atol": str(opts.atol),
         "parameter": opts.parameter, "direction": opts.direction,
         "cell_aware": int(opts.cell_aware),

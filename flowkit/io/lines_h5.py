@@ -94,7 +94,9 @@ class LinesWriter:
     of 1 MiB per dataset), whatever the total size of the file.
 
     ``attrs`` is run metadata for the root (str, numbers, arrays natively; lists, dicts and None
-    as JSON); ``attrs["length_units"]``, if given, becomes the units of x, y, z (default "1").
+    as JSON); ``attrs["length_units"]``, if given, becomes the units of x, y, z (default "1");
+    ``attrs["units"]`` (JSON {attribute: units}, see ``Lines.units``) becomes the CF ``units``
+    of each attribute's variable, and is read back from them.
 
     The file is written under a temporary name in the same directory and renamed onto ``path``
     by ``close()``; if the ``with`` block raises (or ``abort()`` is called) the temporary file is
@@ -151,7 +153,9 @@ class LinesWriter:
     # -- layout ---------------------------------------------------------------------------------
     def _create(self, comp, chunk_points, chunk_lines):
         f = self._file
-        _put_attrs(f, self.attrs, self.path)  # first: unstorable metadata fails before any work
+        units = json.loads(self.attrs.get("units") or "{}")
+        # first: unstorable metadata fails before any work
+        _put_attrs(f, {k: v for k, v in self.attrs.items() if k != "units"}, self.path)
         ids = iter(range(1 << 30))
         self._obs = nc.create_dimension(f, "obs", 0, next(ids), unlimited=True, chunk=chunk_points)
         self._traj = nc.create_dimension(f, "trajectory", 0, next(ids), unlimited=True,
@@ -200,6 +204,8 @@ class LinesWriter:
         for name, ds in {**self._point_ds, **self._line_ds}.items():
             if name in _LONG_NAMES:
                 ds.attrs["long_name"] = _LONG_NAMES[name]
+            if units.get(name):
+                ds.attrs["units"] = str(units[name])
         seed = self._line_ds["seed_id"]
         seed.attrs["cf_role"] = "trajectory_id"
         if self._synthesize_seed_id:
@@ -485,7 +491,30 @@ def _read(f: h5py.File, path: Path, attributes) -> Lines:
     line_data = {k: vtk["CellData"][k][...] for k in line_names if k in wanted}
     if "reason" in line_data:
         line_data["reason"] = _current_reason_codes(f, line_data["reason"], path)
-    return Lines(points, offsets, point_data, line_data, _get_attrs(f))
+    attrs = _get_attrs(f)
+    units = _units(f)
+    if units:
+        attrs["units"] = json.dumps(units)
+    return Lines(points, offsets, point_data, line_data, attrs)
+
+
+def _units(f: h5py.File) -> dict[str, str]:
+    """The CF ``units`` of every point and line attribute that has them."""
+    out = {}
+    for group in ("VTKHDF/PointData", "VTKHDF/CellData"):
+        for name, ds in f.get(group, {}).items():
+            u = ds.attrs.get("units")
+            if u is not None:
+                out[name] = u.decode() if isinstance(u, bytes) else str(u)
+    return out
+
+
+def lines_attributes(path) -> list[str]:
+    """Names of the point and line attributes a lines file holds (nothing else is read)."""
+    path = Path(path)
+    with _open(path) as f:
+        point, line = _attribute_names(f)
+    return point + line
 
 
 def read_units(path) -> dict[str, str]:
@@ -643,7 +672,9 @@ def _summary(f: h5py.File, path: Path) -> str:
                 text = "  ".join(f"[{lo:.6g}, {hi:.6g}]" for lo, hi in rng)
             else:
                 text = f"[{rng[0][0]:.6g}, {rng[0][1]:.6g}]"
-            out.append(f"    {name:<22} {kind:<12} {text}")
+            u = ds.attrs.get("units")
+            u = f"  {u.decode() if isinstance(u, bytes) else u}" if u is not None else ""
+            out.append(f"    {name:<22} {kind:<12} {text}{u}")
     meta = _get_attrs(f)
     if meta:
         out.append("  metadata:")

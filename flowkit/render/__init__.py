@@ -2,10 +2,11 @@
 
 from .camera import Camera
 from .context import RenderContextError, create_context, default_context
-from .renderer import LineRenderer, render_file, render_lines, save_png
+from .renderer import LineRenderer, default_style, render_file, render_lines, save_png
 from .style import Band, ColorMap, LineStyle, Style, StyleError, WidthMap, load_style
 
 __all__ = ["Band", "Camera", "ColorMap", "LineRenderer", "LineStyle", "RenderContextError",
-           "Style", "StyleError", "WidthMap", "create_context", "default_context", "load_style",
+           "Style", "StyleError", "WidthMap", "create_context", "default_context", "default_style",
+           "load_style",
            "render_file", "render_lines",
            "save_png"]

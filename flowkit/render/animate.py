@@ -32,14 +32,14 @@ def frame_styles(style: Style, n: int) -> list[Style]:
 
 
 def render_frames(renderer: LineRenderer, style: Style, n: int, size=(1920, 1080),
-                  camera: Camera | None = None) -> Iterator[np.ndarray]:
+                  camera: Camera | None = None, overlays: bool = False) -> Iterator[np.ndarray]:
     """Yield the ``n`` (H, W, 4) uint8 frames one at a time (a long animation never sits in
-    memory as a whole)."""
+    memory as a whole); ``overlays``: each with the style's legend and annotations."""
     if not style.animated:
         raise ValueError("the style has no shape or colour pattern to move: an animation would "
                          "repeat one picture (add a band 'shape' or 'pattern')")
     for s in frame_styles(style, n):
-        yield renderer.render(s, size, camera)
+        yield renderer.render(s, size, camera, overlays)
 
 
 def frame_paths(path: str | os.PathLike, n: int) -> list[Path]:

@@ -9,6 +9,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+FITS = ("bounds", "sphere")
+VIEWS = ("+x", "-x", "+y", "-y", "+z", "-z", "iso")
+FILL = 0.9  # fitted bounds span this fraction of the image's limiting side (room for widths)
+_AXES = np.eye(3)
+
 
 @dataclass(frozen=True)
 class Camera:
@@ -16,27 +21,46 @@ class Camera:
     target + distance * (cos el cos az * e1 + cos el sin az * e2 + sin el * up), where (e1, e2, up)
     is a right-handed frame with e1 the first coordinate axis not parallel to ``up``.  With
     ``up = (0, 0, 1)``: azimuth -90, elevation 0 looks along +y, x to the right, z up.
-    ``distance``/``target`` None: fit the bounds (whole bounding sphere in view).  ``zoom`` > 1
-    magnifies.  ``fov`` is the vertical field of view (perspective)."""
+    ``view``: a named view instead of azimuth/elevation, as ParaView's buttons: "+x" looks along
+    +x (from the -x side), ..., "iso" looks along (-1, -1, -1).
+    ``up`` None: the coordinate axis (z, then y, then x) that lays the domain's longest axis
+    along the image's long side.  ``distance`` (perspective) or the view height (orthographic)
+    None: fitted.  ``fit = "bounds"`` (default) fits the bounds' corners as projected on the
+    image, to FILL of its limiting side, so a thin or tall domain fills the frame; ``"sphere"``
+    fits their bounding sphere, the same size from every direction.  With an explicit ``target``
+    the fit about the bounds' centre grows as the bounding sphere about the target does.  ``zoom`` > 1
+    magnifies.  ``fov`` is
+    the vertical field of view (perspective)."""
 
     azimuth: float = -60.0
     elevation: float = 25.0
     distance: float | None = None
     target: tuple[float, float, float] | None = None
-    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    up: tuple[float, float, float] | None = None
     fov: float = 30.0
     projection: str = "perspective"
     zoom: float = 1.0
+    view: str | None = None
+    fit: str = "bounds"
 
-    def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        up = np.asarray(self.up, float)
+    def __post_init__(self):
+        if self.fit not in FITS:
+            raise ValueError(f"camera fit = {self.fit!r} is not allowed; expected one of "
+                             f"{', '.join(FITS)}")
+        if self.view is not None and self.view not in VIEWS:
+            raise ValueError(f"camera view = {self.view!r} is not allowed; expected one of "
+                             f"{', '.join(VIEWS)}")
+
+    def frame(self, up=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(e1, e2, up) about ``up`` (default: the camera's own, z when it has none)."""
+        up = np.asarray(up if up is not None else self.up if self.up is not None else _AXES[2],
+                        float)
         n = np.linalg.norm(up)
         if not np.isfinite(n) or n == 0:
-            raise ValueError(f"camera up = {self.up} must be a non-zero vector")
+            raise ValueError(f"camera up = {tuple(up)} must be a non-zero vector")
         up = up / n
-        axes = np.eye(3)
-        e1 = axes[0]
-        for a in axes:  # first coordinate axis not (nearly) parallel to up
+        e1 = _AXES[0]
+        for a in _AXES:  # first coordinate axis not (nearly) parallel to up
             if abs(a @ up) < 0.9:
                 e1 = a - (a @ up) * up
                 break
@@ -44,41 +68,111 @@ class Camera:
         e2 = np.cross(up, e1)
         return e1, e2, up
 
+    def direction(self, up=None) -> np.ndarray:
+        """Unit vector from the target to the eye."""
+        if self.view == "iso":
+            return np.ones(3) / math.sqrt(3.0)
+        if self.view is not None:
+            return -float(self.view[0] + "1") * _AXES["xyz".index(self.view[1])]
+        e1, e2, up = self.frame(up)
+        az, el = math.radians(self.azimuth), math.radians(self.elevation)
+        return math.cos(el) * math.cos(az) * e1 + math.cos(el) * math.sin(az) * e2 + math.sin(el) * up
+
+    def choose_up(self, bounds, width: int, height: int) -> np.ndarray:
+        """The camera's up, or when it has none the first of z, y, x (not along the view) that
+        shows the domain's longest axis more along the image's long side than its short one;
+        failing all, the one showing it most so."""
+        if self.up is not None:
+            return np.asarray(self.up, float)
+        ext = np.ptp(np.asarray(bounds, float), axis=1)
+        longest = _AXES[int(np.argmax(ext))] * max(float(ext.max()), 1e-30)
+        best, best_score = _AXES[2], -math.inf
+        for up in (_AXES[2], _AXES[1], _AXES[0]):
+            d = self.direction(up)
+            if abs(d @ up) > 0.999:  # looking along it: not an up
+                continue
+            s, u = _screen_axes(d, up)
+            horiz, vert = abs(longest @ s), abs(longest @ u)
+            along, across = (horiz, vert) if width >= height else (vert, horiz)
+            if along >= across and along > 0:
+                return up
+            score = along - across
+            if score > best_score:
+                best, best_score = up, score
+        return best
+
     def setup(self, bounds: np.ndarray, width: int, height: int) -> CameraSetup:
         """View and projection for lines with ``bounds`` (3, 2) on a width x height image."""
         b = np.asarray(bounds, float)
-        centre = b.mean(axis=1) if self.target is None else np.asarray(self.target, float)
-        radius = max(0.5 * float(np.linalg.norm(b[:, 1] - b[:, 0])), 1e-9)
-        if self.target is not None:  # sphere about the target that still holds the bounds
-            corners = np.array(np.meshgrid(*b)).reshape(3, -1).T
-            radius = max(float(np.max(np.linalg.norm(corners - centre, axis=1))), 1e-9)
+        corners = np.array(np.meshgrid(*b)).reshape(3, -1).T
+        mid = b.mean(axis=1)
+        centre = mid if self.target is None else np.asarray(self.target, float)
+        radius = max(float(np.max(np.linalg.norm(corners - centre, axis=1))), 1e-9)
+        # an explicit target: the fit about the bounds' centre, grown as the sphere about it
+        grow = radius / max(float(np.max(np.linalg.norm(corners - mid, axis=1))), 1e-9)
         aspect = width / height
         half_fov = math.radians(self.fov) / 2
-        # the tighter of the vertical and horizontal half-angles must hold the sphere
-        half_min = min(half_fov, math.atan(math.tan(half_fov) * aspect))
+        up = self.choose_up(b, width, height)
+        d = self.direction(up)
+        s, u = _screen_axes(d, up)
+        rel = corners - mid
+        x, y, z = rel @ s, rel @ u, rel @ d  # corners on the image's axes and towards the eye
+        sphere = self.fit == "sphere"
+        persp = self.projection == "perspective"
         if self.distance is not None:
             dist = self.distance
-        elif self.projection == "perspective":
-            dist = radius / math.sin(half_min) / self.zoom
-        else:
+        elif not persp:
             dist = 3.0 * radius
-        e1, e2, up = self.frame()
-        az, el = math.radians(self.azimuth), math.radians(self.elevation)
-        d = math.cos(el) * math.cos(az) * e1 + math.cos(el) * math.sin(az) * e2 + math.sin(el) * up
+        elif sphere:  # the tighter of the vertical and horizontal half-angles holds the sphere
+            dist = radius / math.sin(min(half_fov, math.atan(math.tan(half_fov) * aspect))) / self.zoom
+        else:
+            dist = _fit_distance(x, y, z, math.tan(half_fov), aspect, radius) * grow / self.zoom
         eye = centre + dist * d
         view = look_at(eye, centre, up)
         near = max(dist - 1.01 * radius, dist * 1e-3)
         far = dist + 1.01 * radius
-        if self.projection == "perspective":
+        if persp:
             proj = perspective(2 * half_fov, aspect, near, far)
             # world units per pixel at view depth z (< 0): px_a * (-z) + px_b
             px_a, px_b = 2 * math.tan(half_fov) / height, 0.0
         else:
-            half_h = radius / self.zoom / min(1.0, aspect)
+            if sphere:
+                half_h = radius / self.zoom / min(1.0, aspect)
+            else:
+                half = max(float(np.max(np.abs(x))) / aspect, float(np.max(np.abs(y))), 1e-9)
+                half_h = half / FILL * grow / self.zoom
             near = dist - 1.01 * radius  # orthographic: a near plane behind the eye is fine
             proj = orthographic(half_h * aspect, half_h, near, far)
             px_a, px_b = 0.0, 2 * half_h / height
         return CameraSetup(view, proj, eye, (px_a, px_b))
+
+
+def _fit_distance(x, y, z, tan_y, aspect, radius) -> float:
+    """Eye distance at which the corners (image axes x, y; z towards the eye) span FILL of the
+    image's limiting side, with none nearer than 4 % to an edge (the view stays on the bounds'
+    centre, so perspective makes the projection a little lopsided)."""
+    def extents(dist):
+        depth = np.maximum(dist - z, 1e-12 * dist)
+        px, py = x / depth / (tan_y * aspect), y / depth / tan_y  # -1..1 on the image
+        return max(np.ptp(px), np.ptp(py)) / 2, max(np.abs(px).max(), np.abs(py).max())
+
+    lo = float(np.max(z)) + 1e-9 * radius
+    hi = max(lo, radius) * 4.0 + radius / tan_y
+    for _ in range(60):  # the smallest distance with span <= FILL and every corner <= 0.96
+        mid = 0.5 * (lo + hi)
+        span, edge = extents(mid)
+        lo, hi = (mid, hi) if span > FILL or edge > 0.96 else (lo, mid)
+    return max(hi, radius * 1e-6)
+
+
+def _screen_axes(d: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(right, up) on the image for an eye direction ``d`` (target -> eye) and ``up``."""
+    f = -d
+    s = np.cross(f, up)
+    if np.linalg.norm(s) < 1e-9:
+        s = np.cross(f, [1.0, 0.0, 0.0] if abs(f[0]) < 0.9 else [0.0, 1.0, 0.0])
+    s /= np.linalg.norm(s)
+    return s, np.cross(s, f)
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from ..io.atomic import atomic_path
 from ..lines import Lines
 from .camera import Camera
 from .context import default_context, is_software
+from .ranges import data_range, resolve_ranges
 from .shader_build import (
     BIG,
     TEX_WIDTH,
@@ -49,7 +50,7 @@ from .simplify import (
     slopes,
     split_by_range,
 )
-from .style import Style, StyleError, load_style
+from .style import Range, Style, StyleError, load_style
 
 TOLERANCE = 0.25  # level-of-detail tolerance on software rasterizers, output pixels
 LOD_KEPT = 4  # style importances kept (a world-unit width map's tolerance follows the zoom)
@@ -125,6 +126,7 @@ class LineRenderer:
         self._arc = arc_parameter(self._xyz, self._starts, self._stops)
         self._frame_key = None
         self._ranges: dict[str, float] = {}
+        self._auto: dict[tuple[str, Range], tuple[float, float]] = {}  # ranges from the data
         # moderngl does not switch contexts per call: make ours current around all GL work
         with self.ctx:
             self._points = self._texture(np.c_[lines.points, self._arc].astype(np.float32), 4)
@@ -281,6 +283,18 @@ class LineRenderer:
             r = self._ranges[name] = float(fin.max() - fin.min()) if fin.size else 0.0
         return r
 
+    def value_range(self, name: str, spec: Range = None) -> tuple[float, float]:
+        """The range ``spec`` (None: min..max, "pA..pB": percentiles) of attribute ``name`` over
+        these lines: what a style's colour or width map without numbers spans."""
+        key = (name, spec)
+        if key not in self._auto:
+            self._auto[key] = data_range(self._attr_values(name), spec, name)
+        return self._auto[key]
+
+    def resolve(self, style: Style) -> Style:
+        """``style`` with its ranges from the data replaced by numbers (see ``ranges``)."""
+        return resolve_ranges(_as_style(style), self.value_range)
+
     def _select(self, style: Style, cam, size) -> None:
         """Upload this frame's kept vertices (ids + strip indices), unless unchanged."""
         tol = self.tolerance * style.supersample  # output pixels -> render pixels
@@ -367,8 +381,9 @@ class LineRenderer:
 
     @_current
     def render(self, style: Style | str | os.PathLike, size: tuple[int, int] = (1920, 1080),
-               camera: Camera | None = None) -> np.ndarray:
-        """(H, W, 4) uint8 RGBA, row 0 at the top."""
+               camera: Camera | None = None, overlays: bool = False) -> np.ndarray:
+        """(H, W, 4) uint8 RGBA, row 0 at the top.  ``overlays``: with the style's legend and
+        annotations (``overlay``), drawn at the output's resolution."""
         style = _as_style(style)
         w, h = (int(v) for v in size)
         if w < 1 or h < 1:
@@ -384,12 +399,42 @@ class LineRenderer:
         if k > 1:
             img = img.reshape(h, k, w, k, 4).astype(np.float32).mean(axis=(1, 3))
             img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
-        return img
+        return self.overlay(img, style, camera) if overlays else img
+
+    def overlay(self, image: np.ndarray, style: Style, camera: Camera | None = None,
+                scale: float = 1.0) -> np.ndarray:
+        """``image`` (this renderer's picture of ``style``) with the style's legend (when its
+        ``[legend] show``), placed where it covers the fewest drawn pixels unless the style
+        says where, and its annotations: title, the snapshot's time (the lines' metadata
+        ``snapshot_time``), text and a scale bar at the depth of the view's target."""
+        from .legend import annotation_image, composite, legend_image
+
+        style = self.resolve(style)
+        h, w = image.shape[:2]
+        bg = np.array([round(255 * c) for c in (style.background or (0, 0, 0, 0))], int)
+        drawn = np.abs(image.astype(int) - bg).max(axis=2) > 16
+        box = None
+        if style.legend.show:
+            leg, box = legend_image(style, (w, h), units=self.lines.units, scale=scale,
+                                    coverage=drawn)
+            image = composite(image, leg)
+        an = style.annotations
+        t = self.lines.attrs.get("snapshot_time") if an.time else None
+        per_px = None
+        if an.scale_bar:
+            cam = (camera or style.camera).setup(self.bounds, w, h)
+            z = cam.view[2, :3] @ self.bounds.mean(axis=1) + cam.view[2, 3]
+            per_px = cam.px_scale[0] * -z + cam.px_scale[1]
+        text, _ = annotation_image((w, h), style, title=an.title, text=an.text, scale=scale,
+                                   time=None if t is None else float(t), world_per_pixel=per_px,
+                                   length_units=self.lines.attrs.get("length_units"), avoid=box)
+        return composite(image, text)
 
     @_current
     def draw(self, style: Style, size: tuple[int, int], camera: Camera | None = None):
         """Draw into the (multisampled) target of ``size`` and resolve it; no read-back."""
         ctx = self.ctx
+        style = self.resolve(style)
         flags, prog = self.prepare(style)
         attrs = style.attributes()
         cam = (camera or style.camera).setup(self.bounds, *size)
@@ -472,14 +517,15 @@ class LineRenderer:
 
 def render_lines(lines: Lines, style: Style | str | os.PathLike, size=(1920, 1080),
                  camera: Camera | None = None, ctx: moderngl.Context | None = None,
-                 strips: str = "vertex") -> np.ndarray:
+                 strips: str = "vertex", overlays: bool = False) -> np.ndarray:
     """Render ``lines`` with ``style`` (a Style or a TOML path) to an (H, W, 4) uint8 RGBA array.
     ``camera`` overrides the style's camera.  Uses a headless EGL context unless ``ctx`` is given.
     ``strips``: "vertex" or "geometry" shader stage builds the strips (see LineRenderer).
+    ``overlays``: draw the style's legend and annotations (``LineRenderer.overlay``).
     To draw the same lines many times, keep a ``LineRenderer``."""
     style = _as_style(style)
     with LineRenderer(lines, ctx, strips=strips) as r:
-        return r.render(style, size, camera)
+        return r.render(style, size, camera, overlays)
 
 
 def save_png(image: np.ndarray, path: str | os.PathLike) -> Path:
@@ -494,12 +540,32 @@ def save_png(image: np.ndarray, path: str | os.PathLike) -> Path:
     return Path(path)
 
 
-def render_file(path: str | os.PathLike, style: Style | str | os.PathLike, size=(1920, 1080),
-                camera: Camera | None = None, ctx: moderngl.Context | None = None,
-                strips: str = "vertex") -> np.ndarray:
-    """Render a lines HDF5 file, reading only the geometry and the attributes the style uses."""
-    from ..io.lines_h5 import read_lines
+def render_file(path: str | os.PathLike, style: Style | str | os.PathLike | None = None,
+                size=(1920, 1080), camera: Camera | None = None,
+                ctx: moderngl.Context | None = None, strips: str = "vertex",
+                overlays: bool = False) -> np.ndarray:
+    """Render a lines HDF5 file, reading only the geometry and the attributes the style uses.
+    ``style`` None: ``default_style`` for the file's attributes."""
+    from ..io.lines_h5 import lines_attributes, read_lines
 
-    style = _as_style(style)
-    return render_lines(read_lines(path, attributes=style.attributes()), style, size, camera, ctx,
-                        strips)
+    if style is None:
+        names = [a for a in ("speed",) if a in lines_attributes(path)]
+        lines = read_lines(path, attributes=names)
+        style = default_style(names, lines.bounds())
+    else:
+        style = _as_style(style)
+        lines = read_lines(path, attributes=style.attributes())
+    return render_lines(lines, style, size, camera, ctx, strips, overlays)
+
+
+def default_style(attributes, bounds=None) -> Style:
+    """What ``flowkit render`` draws without ``--style``: a 2.5 px core with a 1.5 px black halo
+    set back by 2 % of the ``bounds``' diagonal (so a line cuts those well behind it), the core
+    coloured by speed over its data range (viridis) when the lines have ``speed``, else white."""
+    from .style import Band, ColorMap, LineStyle
+
+    diag = float(np.linalg.norm(np.ptp(np.asarray(bounds, float), axis=1))) if bounds is not None \
+        else 0.0
+    core = ColorMap("viridis", "speed") if "speed" in attributes else (1.0, 1.0, 1.0, 1.0)
+    bands = (Band(core, 2.5), Band((0.0, 0.0, 0.0, 1.0), 1.5, depth_offset=0.02 * diag))
+    return Style(styles={"default": LineStyle(bands)})

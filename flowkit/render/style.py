@@ -12,13 +12,14 @@ integer/enum template flags -- never pastes a string from it into shader source.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .camera import Camera
+from .camera import FITS, VIEWS, Camera
 from .shapes import SHAPE_NAMES
 
 STYLE_VERSION = 1
@@ -38,23 +39,31 @@ class StyleError(ValueError):
 
 
 # -- model -------------------------------------------------------------------------------------
+# A colour or width range: (low, high); None = the attribute's range over the lines drawn;
+# "pA..pB" = its A-th to B-th percentiles (for data with outliers).  ``resolve_ranges`` turns the
+# last two into numbers before anything is drawn.
+Range = tuple[float, float] | str | None
+_PERCENTILES = re.compile(r"^p(\d+(?:\.\d*)?)\.\.p(\d+(?:\.\d*)?)$")
+
+
 @dataclass(frozen=True)
 class ColorMap:
     """Colour from colormap ``cmap`` (any name the ``cmap`` package knows) over ``attribute``,
-    ``range`` = (value at colormap start, value at colormap end)."""
+    ``range`` = (value at colormap start, value at colormap end), or None / "pA..pB" (see
+    ``Range``)."""
 
     cmap: str
     attribute: str
-    range: tuple[float, float]
+    range: Range = None
 
 
 @dataclass(frozen=True)
 class WidthMap:
     """Width mapped linearly from ``attribute``: ``range[0]`` -> ``min``, ``range[1]`` -> ``max``,
-    clamped outside the range."""
+    clamped outside the range (None / "pA..pB": from the data, see ``Range``)."""
 
     attribute: str
-    range: tuple[float, float]
+    range: Range
     min: float
     max: float
 
@@ -136,6 +145,30 @@ class Transfer:
     blend: float = 0.0
 
 
+PLACEMENTS = ("auto", "top-left", "top-right", "bottom-left", "bottom-right")
+
+
+@dataclass(frozen=True)
+class Legend:
+    """``[legend]``: ``show`` it (default; drawn where the caller asks for overlays, e.g.
+    ``flowkit render``) at ``placement`` ("auto": the corner where it covers the fewest drawn
+    pixels)."""
+
+    show: bool = True
+    placement: str = "auto"
+
+
+@dataclass(frozen=True)
+class Annotations:
+    """``[annotations]``: a ``title``, the snapshot's ``time`` (``t = 2000 s``, when the lines
+    file knows it), free ``text`` and a ``scale_bar`` in world units."""
+
+    title: str = ""
+    time: bool = True
+    text: str = ""
+    scale_bar: bool = False
+
+
 @dataclass(frozen=True)
 class Style:
     """A whole scene style.  Use :func:`load_style` for files or build it in Python:
@@ -151,6 +184,8 @@ class Style:
     camera: Camera = field(default_factory=Camera)
     transfer: Transfer | None = None
     phase: float = 0.0  # added to every shape's and pattern's s, in periods (animation)
+    legend: Legend = field(default_factory=Legend)
+    annotations: Annotations = field(default_factory=Annotations)
     version: int = STYLE_VERSION
 
     def __post_init__(self):
@@ -232,9 +267,27 @@ def _name(where, key, v) -> str:
     return v
 
 
-def _range(where, key, v) -> tuple[float, float]:
+def percentiles(spec: str) -> tuple[float, float] | None:
+    """``"p2..p98"`` -> (2.0, 98.0); None when ``spec`` is not such a string."""
+    m = _PERCENTILES.match(spec) if isinstance(spec, str) else None
+    if m is None:
+        return None
+    lo, hi = float(m[1]), float(m[2])
+    return (lo, hi) if 0 <= lo < hi <= 100 else None
+
+
+_RANGE_ALLOWED = ("[low, high] (two different finite numbers), 'pA..pB' (percentiles of the data, "
+                  "0 <= A < B <= 100, e.g. 'p2..p98'), or no range (the data's min to max)")
+
+
+def _range(where, key, v, auto: bool = False) -> Range:
+    """A [low, high] pair; with ``auto`` also None or a percentile string (from the data)."""
+    if auto and (v is None or percentiles(v) is not None):
+        return v
+    if auto and isinstance(v, str):
+        _fail(where, key, v, _RANGE_ALLOWED)
     if not isinstance(v, (list, tuple)) or len(v) != 2:
-        _fail(where, key, v, "[low, high], two different finite numbers")
+        _fail(where, key, v, _RANGE_ALLOWED if auto else "[low, high], two different finite numbers")
     lo, hi = (_number(where, f"{key}[{i}]", x) for i, x in enumerate(v))
     if lo == hi:
         _fail(where, key, list(v), "[low, high] with low != high")
@@ -277,7 +330,7 @@ def validate(style: Style) -> None:
             _check_color(bw, "color", b.color)
             if isinstance(b.width, WidthMap):
                 _name(bw, "width.attribute", b.width.attribute)
-                _range(bw, "width.range", b.width.range)
+                _range(bw, "width.range", b.width.range, auto=True)
                 _number(bw, "width.min", b.width.min, 0.0)
                 _number(bw, "width.max", b.width.max, 0.0)
             else:
@@ -291,6 +344,18 @@ def validate(style: Style) -> None:
             _fail(f"{w}.{sname}", "bands", "total width 0", "a positive total width")
     if style.transfer is not None:
         _check_transfer(w, style.transfer, style.styles)
+    lg, an = style.legend, style.annotations
+    if not isinstance(lg.show, bool):
+        _fail(f"{w} [legend]", "show", lg.show, "true or false")
+    if lg.placement not in PLACEMENTS:
+        _fail(f"{w} [legend]", "placement", lg.placement, ", ".join(map(repr, PLACEMENTS)))
+    for k in ("title", "text"):
+        v = getattr(an, k)
+        if not isinstance(v, str) or len(v) > 200 or "\n" in v:
+            _fail(f"{w} [annotations]", k, v, "one line of text (at most 200 characters)")
+    for k in ("time", "scale_bar"):
+        if not isinstance(getattr(an, k), bool):
+            _fail(f"{w} [annotations]", k, getattr(an, k), "true or false")
 
 
 def _check_color(where, key, c) -> None:
@@ -298,7 +363,7 @@ def _check_color(where, key, c) -> None:
         _name(where, f"{key}.attribute", c.attribute)
         if not known_colormap(c.cmap):
             _fail(where, f"{key}.cmap", c.cmap, "a colormap name the 'cmap' package knows")
-        _range(where, f"{key}.range", c.range)
+        _range(where, f"{key}.range", c.range, auto=True)
     else:
         _rgba(where, key, c)
 
@@ -391,17 +456,22 @@ def _check_keys(where: str, table: dict, allowed: set[str]):
 def _color_from(where: str, key: str, color) -> RGBA | ColorMap:
     if isinstance(color, dict):
         _check_keys(f"{where}.{key}", color, {"cmap", "attribute", "range"})
-        for k in ("cmap", "attribute", "range"):
+        for k in ("cmap", "attribute"):
             if k not in color:
-                raise StyleError(f"{where}.{key}: missing key '{k}' (a colormap colour needs cmap, attribute, range)")
+                raise StyleError(f"{where}.{key}: missing key '{k}' (a colormap colour needs cmap "
+                                 "and attribute; range is optional: the data's range)")
         if not isinstance(color["cmap"], str):
             _fail(where, f"{key}.cmap", color["cmap"], "a colormap name (string)")
         color = ColorMap(color["cmap"], _name(where, f"{key}.attribute", color["attribute"]),
-                         _range(where, f"{key}.range", color["range"]))
+                         _range(where, f"{key}.range", _toml_range(color.get("range")), auto=True))
         if not known_colormap(color.cmap):
             _fail(where, f"{key}.cmap", color.cmap, "a colormap name the 'cmap' package knows, e.g. 'viridis'")
         return color
     return _rgba(where, key, color)
+
+
+def _toml_range(v):
+    return tuple(v) if isinstance(v, list) else v
 
 
 def _shape_from(where: str, t) -> Shape:
@@ -452,8 +522,10 @@ def _transfer_from(where: str, t) -> Transfer:
     ranges = []
     for i, r in enumerate(t["ranges"]):
         _check_keys(f"{tw} range {i + 1}", r, {"range", "style"})
-        if "range" not in r:
-            raise StyleError(f"{tw} range {i + 1}: missing key 'range' ([low, high], inf allowed)")
+        if "range" not in r or isinstance(r["range"], str):
+            got = f" = {r['range']!r}" if "range" in r else " is missing"
+            raise StyleError(f"{tw} range {i + 1}: range{got}; a transfer function's bounds "
+                             "cannot come from the data: give range = [low, high] (inf allowed)")
         st = r.get("style")
         if st is not None and not isinstance(st, str):
             _fail(f"{tw} range {i + 1}", "style", st, "a style name")
@@ -468,11 +540,12 @@ def _band_from(where: str, t: dict) -> Band:
     width = t.get("width", 1.0)
     if isinstance(width, dict):
         _check_keys(f"{where}.width", width, {"attribute", "range", "min", "max"})
-        for k in ("attribute", "range", "min", "max"):
+        for k in ("attribute", "min", "max"):
             if k not in width:
-                raise StyleError(f"{where}.width: missing key '{k}' (a mapped width needs attribute, range, min, max)")
+                raise StyleError(f"{where}.width: missing key '{k}' (a mapped width needs "
+                                 "attribute, min, max; range is optional: the data's range)")
         width = WidthMap(_name(where, "width.attribute", width["attribute"]),
-                         _range(where, "width.range", width["range"]),
+                         _range(where, "width.range", _toml_range(width.get("range")), auto=True),
                          _number(where, "width.min", width["min"], 0.0),
                          _number(where, "width.max", width["max"], 0.0))
     else:
@@ -494,7 +567,7 @@ def _line_style_from(where: str, bands) -> LineStyle:
 def style_from_dict(data: dict, where: str = "style") -> Style:
     """Build a Style from parsed TOML (or an equivalent dict)."""
     top = {"version", "units", "scale", "background", "antialias", "samples", "supersample",
-           "camera", "bands", "styles", "transfer", "phase"}
+           "camera", "bands", "styles", "transfer", "phase", "legend", "annotations"}
     _check_keys(where, data, top)
     if "version" not in data:
         raise StyleError(f"{where}: missing key 'version' (this flowkit reads version = {STYLE_VERSION})")
@@ -537,6 +610,11 @@ def style_from_dict(data: dict, where: str = "style") -> Style:
         kw["transfer"] = _transfer_from(where, data["transfer"])
     if "phase" in data:
         kw["phase"] = _number(where, "phase", data["phase"])
+    for key, cls in (("legend", Legend), ("annotations", Annotations)):
+        if key in data:
+            names = {f.name for f in dataclasses.fields(cls)}
+            _check_keys(f"{where} [{key}]", data[key], names)
+            kw[key] = cls(**data[key])
     try:
         return Style(styles=styles, **kw)
     except StyleError as e:  # checks shared with Python-built styles: name the file too
@@ -545,8 +623,16 @@ def style_from_dict(data: dict, where: str = "style") -> Style:
 
 def camera_from_dict(where: str, t: dict) -> Camera:
     _check_keys(where, t, {"azimuth", "elevation", "distance", "target", "up", "fov", "projection",
-                           "zoom"})
+                           "zoom", "view", "fit"})
     kw = {}
+    if "view" in t:
+        if t["view"] not in VIEWS:
+            _fail(where, "view", t["view"], ", ".join(map(repr, VIEWS)))
+        both = [k for k in ("azimuth", "elevation") if k in t]
+        if both:
+            raise StyleError(f"{where}: view = {t['view']!r} and {both[0]} = {t[both[0]]!r} both "
+                             "set the view direction; give one of them")
+        kw["view"] = t["view"]
     for k in ("azimuth", "elevation"):
         if k in t:
             kw[k] = _number(where, k, t[k], -360.0, 360.0)
@@ -566,6 +652,10 @@ def camera_from_dict(where: str, t: dict) -> Camera:
         if t["projection"] not in PROJECTIONS:
             _fail(where, "projection", t["projection"], " or ".join(map(repr, PROJECTIONS)))
         kw["projection"] = t["projection"]
+    if "fit" in t:
+        if t["fit"] not in FITS:
+            _fail(where, "fit", t["fit"], " or ".join(map(repr, FITS)))
+        kw["fit"] = t["fit"]
     return Camera(**kw)
 
 
@@ -585,16 +675,21 @@ def load_style(path: str | Path) -> Style:
 # -- model -> TOML (the viewer's "save style") ---------------------------------------------------
 def _color_out(c):
     if isinstance(c, ColorMap):
-        return {"cmap": c.cmap, "attribute": c.attribute, "range": list(c.range)}
+        return {"cmap": c.cmap, "attribute": c.attribute, **_range_out(c.range)}
     if all(round(v * 255) / 255 == v for v in c):  # exactly a hex colour: write it as one
         return "#" + "".join(f"{round(v * 255):02x}" for v in (c if c[3] != 1.0 else c[:3]))
     return list(c)
 
 
+def _range_out(r: Range) -> dict:
+    """The ``range`` key of a colour or width table (none: from the data)."""
+    return {} if r is None else {"range": r if isinstance(r, str) else list(r)}
+
+
 def _band_out(b: Band) -> dict:
     w = b.width
     out = {"color": _color_out(b.color),
-           "width": {"attribute": w.attribute, "range": list(w.range), "min": w.min,
+           "width": {"attribute": w.attribute, **_range_out(w.range), "min": w.min,
                      "max": w.max} if isinstance(w, WidthMap) else w,
            "depth_offset": b.depth_offset}
     if b.shape is not None:
@@ -621,12 +716,18 @@ def style_to_dict(style: Style) -> dict:
            "supersample": style.supersample, "phase": style.phase}
     cam = {k: list(v) if isinstance(v, tuple) else v
            for k, v in vars(style.camera).items() if v is not None}
+    if style.camera.view is not None:  # the named view replaces azimuth and elevation
+        cam.pop("azimuth"), cam.pop("elevation")
     out["camera"] = cam
     if list(style.styles) == ["default"] and style.transfer is None:
         out["bands"] = [_band_out(b) for b in style.line_style.bands]
     else:
         out["styles"] = {n: {"bands": [_band_out(b) for b in ls.bands]}
                          for n, ls in style.styles.items()}
+    for key in ("legend", "annotations"):
+        val = getattr(style, key)
+        if val != type(val)():
+            out[key] = dataclasses.asdict(val)
     if style.transfer is not None:
         tf = style.transfer
         out["transfer"] = {"attribute": tf.attribute, "blend": tf.blend, "ranges": [

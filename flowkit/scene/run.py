@@ -256,8 +256,9 @@ def _extend(lines: Lines, fld, seeds: np.ndarray, missing) -> Lines:
     """Add attributes that depend only on the vertices, as the integrator computes them."""
     seed_of = seeds[np.repeat(lines.line_data["seed_id"], lines.lengths)]
     new = _attributes.compute(fld, missing, lines.points, None, None, seed_of)
-    return Lines(lines.points, lines.offsets, {**lines.point_data, **new}, lines.line_data,
-                 lines.attrs)
+    pd = {**lines.point_data, **new}
+    return Lines(lines.points, lines.offsets, pd, lines.line_data,
+                 {**lines.attrs, **_attributes.metadata(fld, pd)})
 
 
 def _out(out: Path, rel: str) -> Path:
@@ -274,7 +275,7 @@ def _render(plan: Plan, lines: Lines, res: SnapshotResult, out: Path, fmt: dict,
     with LineRenderer(lines, ctx) as r:
         for v in scene.views.values():
             with _Stage(res, f"render {v.name}", report) as st:
-                img = r.render(scene.styles[v.style], v.size, v.camera)
+                img = r.render(scene.styles[v.style], v.size, v.camera, overlays=True)
                 path = _out(out, scene.outputs.images.format(view=v.name, style=v.style, **fmt))
                 res.images[v.name] = save_png(img, path)
                 st.msg = f"{path} ({v.size[0]}x{v.size[1]})"
@@ -295,7 +296,7 @@ def _animate(scene: Scene, r, res: SnapshotResult, out: Path, fmt: dict, report)
         name = f"animate {v.name}"
         with _Stage(res, name, report) as st:
             path = _out(out, o.animation.format(view=v.name, style=v.style, **fmt))
-            frames = render_frames(r, scene.styles[v.style], o.frames, v.size, v.camera)
+            frames = render_frames(r, scene.styles[v.style], o.frames, v.size, v.camera, True)
             res.animations[v.name] = write_animation(frames, path, o.frames, o.fps,
                                                      progress=_ticker(name, o.frames, report))
             shown = path if len(res.animations[v.name]) == 1 else (

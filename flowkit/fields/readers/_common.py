@@ -99,6 +99,34 @@ def dtype_note(arrays: dict) -> list[str]:
     )
 
 
+# Units of the fields an OpenFOAM export names, where the name fixes them.  p, p_rgh and alphat
+# are left out: kinematic (m2/s2, m2/s) in incompressible solvers, Pa and kg/m/s in compressible.
+OPENFOAM_UNITS = {"U": "m/s", "T": "K", "k": "m2/s2", "epsilon": "m2/s3", "omega": "1/s",
+                  "nut": "m2/s", "nuTilda": "m2/s", "rho": "kg/m3"}
+
+
+def openfoam_export(path) -> bool:
+    """Whether a VTK file was written by OpenFOAM's foamToVTK (its header comment names the
+    case), so its lengths are metres and the OPENFOAM_UNITS names mean what they say."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(512)
+    except OSError:
+        return False
+    return b"<!-- case=" in head
+
+
+def foam_units(path, names) -> tuple[dict[str, str], str | None]:
+    """(units by array name, length units) of an OpenFOAM export; nothing for other files."""
+    if not openfoam_export(path):
+        return {}, None
+    units = {n: OPENFOAM_UNITS[n] for n in names if n in OPENFOAM_UNITS}
+    for n in names:  # NAME_x/_y/_z components of a known vector
+        if n[-2:] in ("_x", "_y", "_z") and n[:-2] in OPENFOAM_UNITS:
+            units[n[:-2]] = OPENFOAM_UNITS[n[:-2]]
+    return units, "m"
+
+
 def make_field(
     where,
     x,
@@ -111,11 +139,16 @@ def make_field(
     notes=(),
     periodic=(False, False, False),
     period=None,
+    units=None,
+    length_units=None,
 ) -> Field:
-    """A Field from 1-D axes and named node arrays indexed [i, j, k] (x first)."""
+    """A Field from 1-D axes and named node arrays indexed [i, j, k] (x first).  ``units``:
+    array name -> units as the file states them (the vector's under its own name)."""
     grid = grid_from_axes(where, x, y, z, periodic, period)
     vec, scalars, more = vectors_and_scalars(where, grid.shape, arrays, vector)
     notes = [*notes, *dtype_note({vector: vec, **scalars}), *more]
+    kept = {vector, *scalars}
+    units = {str(n): str(u) for n, u in (units or {}).items() if n in kept and str(u).strip()}
     return Field(
         grid,
         vec,
@@ -124,6 +157,8 @@ def make_field(
         source=str(where),
         time=None if time is None else float(time),
         notes=notes,
+        units=units,
+        length_units=str(length_units) if length_units else None,
     )
 
 

@@ -125,10 +125,11 @@ def _read_flowkit(path, f, vector, snapshot, time, periodic, period):
         notes.append(f"snapshot {i} of {len(keys)} (times {fmt_times(times)})")
     elif snapshot not in (None, 0, -1) or time is not None:
         select_snapshot(path, times, snapshot, time)  # raises with the times the file has
-    arrays = {}
+    arrays, units = {}, {}
     for kind in ("vectors", "scalars"):
         if kind in g:
             arrays.update({name: ds[()] for name, ds in g[kind].items()})
+            units.update(_units(g[kind].values()))
     if "period" in f.attrs and period is None and not any(np.atleast_1d(periodic)):
         p = np.asarray(f.attrs["period"], float)
         period, periodic = tuple(p), tuple(p > 0)
@@ -145,6 +146,8 @@ def _read_flowkit(path, f, vector, snapshot, time, periodic, period):
         notes=notes,
         periodic=periodic,
         period=period,
+        units=units,
+        length_units=_length_units(path, [f[c] for c in "xyz"]),
     )
 
 
@@ -181,6 +184,11 @@ def _read_paths(path, f, vector, x, y, z, u, v, w, scalars, order, periodic, per
         raise ReaderError(f"{path}: give the vector as vector='/path' or as u=, v=, w= paths")
     for sname, p in (scalars or {}).items():
         arrays[sname] = node(get(p, f"scalar {sname}"))
+    units = {n: _str(f[p].attrs["units"]) for n, p in (scalars or {}).items()
+             if "units" in f[p].attrs}
+    comps = {_str(f[p].attrs.get("units", "")) for p in ((u, v, w) if u is not None else (vector,))}
+    if len(comps) == 1 and "" not in comps:
+        units[name] = comps.pop()
     return make_field(
         path,
         *axes,
@@ -188,8 +196,26 @@ def _read_paths(path, f, vector, x, y, z, u, v, w, scalars, order, periodic, per
         name,
         periodic=periodic,
         period=period,
+        units=units,
+        length_units=_length_units(path, [f[p] for p in (x, y, z)]),
         notes=[f"read from HDF5 datasets given by path (order {order})"],
     )
+
+
+def _units(datasets) -> dict[str, str]:
+    """Dataset name -> its ``units`` attribute (CF), for the datasets that have one."""
+    out = {}
+    for ds in datasets:
+        u = ds.attrs.get("units")
+        if u is not None and _str(u).strip():
+            out[ds.name.rsplit("/", 1)[-1]] = _str(u).strip()
+    return out
+
+
+def _length_units(path, axes) -> str | None:
+    """The coordinates' common ``units`` attribute (None when none or when they differ)."""
+    found = {_str(ds.attrs["units"]).strip() for ds in axes if "units" in ds.attrs}
+    return found.pop() if len(found) == 1 else None
 
 
 def _datasets(f) -> list[str]:

@@ -21,7 +21,7 @@ import zlib
 
 import numpy as np
 
-from ._common import ReaderError, existing, make_field
+from ._common import ReaderError, existing, foam_units, make_field
 
 TYPES = {
     "Int8": "i1",
@@ -126,8 +126,10 @@ def read_vtk_xml(path, vector="U", data="point", periodic=(False, False, False),
         )
     elif other:
         notes.append(f"cell data not loaded (pass data='cell' to use it): {', '.join(other)}")
+    units, length = foam_units(path, arrays)
     return make_field(
-        path, *axes, arrays, vector, time=time, notes=notes, periodic=periodic, period=period
+        path, *axes, arrays, vector, time=time, notes=notes, periodic=periodic, period=period,
+        units=units, length_units=length,
     )
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..grid import Grid
-from ._common import ReaderError, existing, make_field
+from ._common import ReaderError, existing, foam_units, make_field
 
 
 def read_vtu(
@@ -104,12 +104,15 @@ def read_vtu(
             f"(i, j, k) and every lattice position is filled exactly once "
             f"(largest node offset from its lattice line {dev:.3g})",
         )
+        units, length = foam_units(path, nodes)
         return make_field(
-            path, *axes, nodes, vector, time=time, notes=notes, periodic=periodic, period=period
+            path, *axes, nodes, vector, time=time, notes=notes, periodic=periodic, period=period,
+            units=units, length_units=length,
         )
     target = grid if grid is not None else _grid(path, pts, shape, bounds)
     nodes, note = resample(pts, arrays, target)
     notes.insert(0, note)
+    units, length = foam_units(path, nodes)
     return make_field(
         path,
         *target.axes,
@@ -117,6 +120,8 @@ def read_vtu(
         vector,
         time=time,
         notes=notes,
+        units=units,
+        length_units=length,
         periodic=periodic if grid is None else grid.periodic,
         period=period if grid is None else grid.period,
     )

@@ -110,6 +110,11 @@ def from_xarray(
                 f"{where}: scalar '{n}' has dimensions {ds[n].dims}, expected {var_dims}"
             )
         arrays[str(n)] = ds[n].isel(sel).transpose(*xyz).values
+    units = {str(n): ds[n].attrs["units"] for n in scalars if "units" in ds[n].attrs}
+    comp_units = {str(c.attrs.get("units", "")) for c in comps}
+    if len(comp_units) == 1 and "" not in comp_units:
+        units[vector_name] = comp_units.pop()
+    lengths = {str(ds[d].attrs.get("units", "")) for d in xyz}
     return make_field(
         where,
         *axes,
@@ -119,6 +124,8 @@ def from_xarray(
         notes=notes,
         periodic=periodic,
         period=period,
+        units=units,
+        length_units=lengths.pop() if len(lengths) == 1 and "" not in lengths else None,
     )
 
 
