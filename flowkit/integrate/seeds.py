@@ -12,7 +12,13 @@
   with ``numpy.random.default_rng(seed)``.
 - ``random_in(domain, n, seed=0)``: n uniform random points in a Field's grid (points in NaN
   cells rejected and redrawn), a Grid, an analytic field (its ``default_bounds``) or (3, 2) bounds.
-- ``parse_seed_spec(spec, field=None)``: the CLI's ``--seeds`` value, see ``SPEC_HELP``.
+- ``parse_seed_spec(spec, field=None)``: the CLI's ``--seeds`` value, see ``SPEC_HELP``;
+  ``density`` and ``where`` draw from the field's data (flowkit.seeding.data).
+- ``line_spec``, ``plane_spec``, ``points_spec``: the spec strings of those forms (exact: they
+  parse back to the same points), e.g. for a rake placed in the viewer.
+
+``even:DSEP[:DTEST[:SEED]]`` grows evenly spaced lines rather than giving seed points: it is
+parsed by ``parse_even_spec`` and traced by ``flowkit.seeding.trace_spec``.
 
 Errors are ``SeedError`` (a ValueError) naming the file, line, spec or argument at fault.
 """
@@ -31,7 +37,11 @@ from ..fields.interp import INSIDE
 SPEC_HELP = (
     "a .npy/.csv/.txt file of x,y,z points; points:x,y,z[:x,y,z...]; "
     "line:x0,y0,z0:x1,y1,z1:n; plane:ox,oy,oz:ux,uy,uz:vx,vy,vz:nu,nv; "
-    "box:x0,y0,z0:x1,y1,z1:n[:random[:seed]] (n or nx,ny,nz); random:n[:seed] (in the field)"
+    "box:x0,y0,z0:x1,y1,z1:n[:random[:seed]] (n or nx,ny,nz); random:n[:seed] (in the field); "
+    "density:n:ATTRIBUTE[:seed] (probability proportional to speed, vorticity_magnitude, a "
+    "scalar or grad(SCALAR)); where:EXPR:n[:seed] (uniform where EXPR holds, e.g. T>302 and "
+    "speed<0.1); even:DSEP[:DTEST[:seed]] (evenly spaced lines; lengths in world units, or "
+    "with a d suffix a fraction of the domain diagonal, e.g. 1/30d)"
 )
 FILE_TYPES = (".npy", ".csv", ".txt")
 
@@ -204,6 +214,11 @@ def parse_seed_spec(spec: str, field=None) -> np.ndarray:
     """
     spec = str(spec).strip()
     kind, sep, rest = spec.partition(":")
+    if sep and kind.lower() == "even":
+        parse_even_spec(spec)  # a malformed spec says what is wrong with it first
+        raise SeedError(f"seed spec '{spec}': 'even' grows evenly spaced lines, it gives no seed "
+                        "points by itself; trace it with flowkit.seeding.trace_spec (the CLI and "
+                        "scenes do)")
     parse = _FORMS.get(kind.lower()) if sep else None
     if parse is None:
         if Path(spec).suffix.lower() in FILE_TYPES:
@@ -257,6 +272,41 @@ class _Spec:
         return vals
 
 
+def _need_field(s: _Spec, field, what: str):
+    if field is None:
+        raise s.error(f"'{s.kind}' {what}, but no field was given")
+    if not isinstance(field, Field):
+        raise s.error(f"'{s.kind}' {what}: needs a gridded Field, got {type(field).__name__}")
+
+
+def _seed_part(s: _Spec, i: int) -> int:
+    return s.count(i, "seed", minimum=0) if len(s.parts) > i else 0
+
+
+def _density_form(s: _Spec, field):
+    from ..seeding.data import density
+
+    s.nparts(2, 3)
+    n = s.count(0)
+    _need_field(s, field, "weighs the field's data")
+    try:
+        return density(field, n, s.parts[1].strip(), _seed_part(s, 2))
+    except SeedError as e:
+        raise s.error(str(e)) from None
+
+
+def _where_form(s: _Spec, field):
+    from ..seeding.data import where
+
+    s.nparts(2, 3)
+    n = s.count(1)
+    _need_field(s, field, "tests the field's data")
+    try:
+        return where(field, s.parts[0], n, _seed_part(s, 2))
+    except SeedError as e:
+        raise s.error(str(e)) from None
+
+
 def _points_form(s: _Spec, field):
     return np.array([s.point(i) for i in range(len(s.parts))], dtype=np.float64)
 
@@ -300,11 +350,101 @@ def _random_form(s: _Spec, field):
 
 
 _FORMS = {"points": _points_form, "line": _line_form, "plane": _plane_form, "box": _box_form,
-          "random": _random_form}
+          "random": _random_form, "density": _density_form, "where": _where_form}
 _USAGE = {
     "points": "points:x,y,z[:x,y,z...]",
     "line": "line:x0,y0,z0:x1,y1,z1:n",
     "plane": "plane:ox,oy,oz:ux,uy,uz:vx,vy,vz:nu,nv",
     "box": "box:x0,y0,z0:x1,y1,z1:n[:random[:seed]] (n or nx,ny,nz)",
     "random": "random:n[:seed]",
+    "density": "density:n:ATTRIBUTE[:seed] (ATTRIBUTE: speed, vorticity_magnitude, a scalar "
+               "field or grad(SCALAR))",
+    "where": "where:EXPR:n[:seed] (EXPR: scalar names, numbers, < <= > >= == !=, and or not, "
+             "parentheses)",
+    "even": "even:DSEP[:DTEST[:seed]] (world units, or a fraction of the domain diagonal with a "
+            "d suffix: 0.05d, 1/30d; DTEST default DSEP/2)",
 }
+
+
+# -- evenly spaced lines ---------------------------------------------------------------------
+class Length:
+    """A length in world units, or ``fraction`` of the domain diagonal (``relative``)."""
+
+    def __init__(self, value: float, relative: bool = False):
+        self.value, self.relative = float(value), bool(relative)
+
+    def resolve(self, diagonal: float) -> float:
+        return self.value * diagonal if self.relative else self.value
+
+    def __eq__(self, other):
+        return isinstance(other, Length) and (self.value, self.relative) == (other.value,
+                                                                             other.relative)
+
+    def __repr__(self):
+        return f"{self.value!r}{'d' if self.relative else ''}"
+
+
+class EvenSpec:
+    """``even:DSEP[:DTEST[:SEED]]`` parsed: dsep, dtest (None: dsep / 2) and the random seed."""
+
+    def __init__(self, dsep: Length, dtest: Length | None, seed: int):
+        self.dsep, self.dtest, self.seed = dsep, dtest, seed
+
+    def distances(self, diagonal: float) -> tuple[float, float]:
+        dsep = self.dsep.resolve(diagonal)
+        dtest = 0.5 * dsep if self.dtest is None else self.dtest.resolve(diagonal)
+        return dsep, dtest
+
+
+def _length(s: _Spec, i: int, name: str) -> Length:
+    text = s.parts[i].strip().lower()
+    rel = text.endswith("d")
+    num = text[:-1] if rel else text
+    try:
+        a, slash, b = num.partition("/")
+        value = float(a) / float(b) if slash else float(a)
+    except (ValueError, ZeroDivisionError):
+        value = None
+    if value is None or not np.isfinite(value) or value <= 0:
+        raise s.error(f"part {i + 1} '{s.parts[i]}' must be {name}, a positive length (world "
+                      "units, or a fraction of the domain diagonal with a d suffix: 0.05d, 1/30d)")
+    return Length(value, rel)
+
+
+def parse_even_spec(spec: str) -> EvenSpec | None:
+    """The parsed ``even:`` spec, or None when ``spec`` is another form."""
+    spec = str(spec).strip()
+    kind, sep, rest = spec.partition(":")
+    if not sep or kind.lower() != "even":
+        return None
+    s = _Spec(spec, "even", rest.split(":"))
+    s.nparts(1, 3)
+    dsep = _length(s, 0, "DSEP")
+    dtest = _length(s, 1, "DTEST") if len(s.parts) > 1 and s.parts[1].strip() else None
+    if dtest is not None and dtest.relative == dsep.relative and not dtest.value < dsep.value:
+        raise s.error(f"DTEST {dtest!r} must be smaller than DSEP {dsep!r}")
+    return EvenSpec(dsep, dtest, _seed_part(s, 2))
+
+
+# -- spec strings of the point forms (exact: repr of a float parses back to the same float) ---
+def _point_text(p) -> str:
+    return ",".join(repr(float(v)) for v in points(p)[0])
+
+
+def line_spec(p0, p1, n: int) -> str:
+    """The spec of ``line(p0, p1, n)``."""
+    return f"line:{_point_text(p0)}:{_point_text(p1)}:{_count(n, 'line: n')}"
+
+
+def plane_spec(origin, u, v, nu: int, nv: int) -> str:
+    """The spec of ``plane(origin, u, v, nu, nv)``."""
+    return (f"plane:{_point_text(origin)}:{_point_text(u)}:{_point_text(v)}:"
+            f"{_count(nu, 'plane: nu')},{_count(nv, 'plane: nv')}")
+
+
+def points_spec(values) -> str:
+    """The spec of explicit points (at least one)."""
+    p = points(values)
+    if not len(p):
+        raise SeedError("points spec: needs at least one point")
+    return "points:" + ":".join(_point_text(q) for q in p)
