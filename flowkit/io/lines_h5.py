@@ -482,8 +482,9 @@ def _read(f: h5py.File, path: Path, attributes) -> Lines:
         raise LinesFileError(f"{path}: rowSize disagrees with VTKHDF/Lines/Offsets")
     point_data = {k: vtk["PointData"][k][...] for k in point_names if k in wanted}
     line_data = {k: vtk["CellData"][k][...] for k in line_names if k in wanted}
-    if "reason" in line_data:
-        line_data["reason"] = _current_reason_codes(f, line_data["reason"], path)
+    for name in ("reason", "reason_backward"):
+        if name in line_data:
+            line_data[name] = _current_reason_codes(f, line_data[name], path)
     return Lines(points, offsets, point_data, line_data, _get_attrs(f))
 
 
@@ -608,11 +609,12 @@ def _summary(f: h5py.File, path: Path) -> str:
         out.append("  bounds: " + "  ".join(
             f"{a} [{lo:.6g}, {hi:.6g}]" for a, (lo, hi) in zip("xyz", _ranges(vtk["Points"]))))
     point_names, line_names = _attribute_names(f)
-    if "reason" in line_names:
-        reasons = _current_reason_codes(f, vtk["CellData/reason"][...], path)
-        codes, n = np.unique(reasons, return_counts=True)
-        out.append("  reasons: " + ", ".join(
-            f"{Reason(c).label} {k}" for c, k in zip(codes.tolist(), n.tolist())))
+    for name, title in (("reason", "reasons"), ("reason_backward", "reasons backward")):
+        if name in line_names:  # direction both: the forward half's, then the backward half's
+            reasons = _current_reason_codes(f, vtk[f"CellData/{name}"][...], path)
+            codes, n = np.unique(reasons, return_counts=True)
+            out.append(f"  {title}: " + ", ".join(
+                f"{Reason(c).label} {k}" for c, k in zip(codes.tolist(), n.tolist())))
     for title, group, names in (("point", vtk.get("PointData"), point_names),
                                 ("line", vtk.get("CellData"), line_names)):
         if names:

@@ -144,6 +144,8 @@ def density(field: Field, n: int, attribute: str, seed: int = 0) -> np.ndarray:
         have += int(ok.sum())
         if have >= n:
             break
+    if have < n:  # cannot happen unless the weights are degenerate: say so rather than return less
+        raise SeedError(f"{field.source}: only {have} of {n} density seeds accepted")
     return np.ascontiguousarray(np.concatenate(kept)[:n])
 
 
