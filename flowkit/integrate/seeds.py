@@ -50,6 +50,9 @@ class SeedError(ValueError):
     """Seeds that cannot be made: bad file, bad spec, bad arguments."""
 
 
+CHECK_ONLY = object()  # as parse_seed_spec's field: check the spec's own parts, make no seeds
+
+
 def points(values, where: str = "seed points") -> np.ndarray:
     """Explicit points as (n, 3) float64; a single (3,) point gives (1, 3)."""
     try:
@@ -210,19 +213,23 @@ def _bounds(domain) -> np.ndarray:
 def parse_seed_spec(spec: str, field=None) -> np.ndarray:
     """Seeds from a spec string: a file path or ``kind:part:part...`` (see ``SPEC_HELP``).
 
-    ``random`` needs ``field`` (Field, Grid, analytic field or bounds) for its domain.
+    ``random`` needs ``field`` (Field, Grid, analytic field or bounds) for its domain,
+    ``density`` and ``where`` a Field.  With ``field=CHECK_ONLY`` the spec is only checked
+    (even, and the parts no field decides) and None is returned.
     """
     spec = str(spec).strip()
     kind, sep, rest = spec.partition(":")
     if sep and kind.lower() == "even":
         parse_even_spec(spec)  # a malformed spec says what is wrong with it first
+        if field is CHECK_ONLY:
+            return None
         raise SeedError(f"seed spec '{spec}': 'even' grows evenly spaced lines, it gives no seed "
                         "points by itself; trace it with flowkit.seeding.trace_spec (the CLI and "
                         "scenes do)")
     parse = _FORMS.get(kind.lower()) if sep else None
     if parse is None:
         if Path(spec).suffix.lower() in FILE_TYPES:
-            return from_file(spec)
+            return None if field is CHECK_ONLY else from_file(spec)
         raise SeedError(f"seed spec '{spec}': not a seed file nor a known form; allowed: {SPEC_HELP}")
     return parse(_Spec(spec, kind.lower(), rest.split(":")), field)
 
@@ -287,10 +294,12 @@ def _density_form(s: _Spec, field):
     from ..seeding.data import density
 
     s.nparts(2, 3)
-    n = s.count(0)
+    n, seed = s.count(0), _seed_part(s, 2)
+    if field is CHECK_ONLY:
+        return None
     _need_field(s, field, "weighs the field's data")
     try:
-        return density(field, n, s.parts[1].strip(), _seed_part(s, 2))
+        return density(field, n, s.parts[1].strip(), seed)
     except SeedError as e:
         raise s.error(str(e)) from None
 
@@ -299,10 +308,18 @@ def _where_form(s: _Spec, field):
     from ..seeding.data import where
 
     s.nparts(2, 3)
-    n = s.count(1)
+    n, seed = s.count(1), _seed_part(s, 2)
+    if field is CHECK_ONLY:
+        from ..seeding.expr import Expression, ExpressionError
+
+        try:
+            Expression(s.parts[0])  # the grammar; the names are the field's to check
+        except ExpressionError as e:
+            raise s.error(str(e)) from None
+        return None
     _need_field(s, field, "tests the field's data")
     try:
-        return where(field, s.parts[0], n, _seed_part(s, 2))
+        return where(field, s.parts[0], n, seed)
     except SeedError as e:
         raise s.error(str(e)) from None
 
@@ -342,10 +359,12 @@ def _box_form(s: _Spec, field):
 
 def _random_form(s: _Spec, field):
     s.nparts(1, 2)
-    if field is None:
-        raise s.error("'random' draws in the field's domain, but no field was given")
     n = s.count(0)
     seed = s.count(1, "seed", minimum=0) if len(s.parts) > 1 else 0
+    if field is CHECK_ONLY:
+        return None
+    if field is None:
+        raise s.error("'random' draws in the field's domain, but no field was given")
     return random_in(field, n, seed)
 
 

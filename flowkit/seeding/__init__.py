@@ -28,3 +28,4 @@ def needs_field(spec: str) -> bool:
     """True for specs whose seeds depend on the field's data (random, density, where, even)."""
     kind = str(spec).strip().partition(":")[0].lower()
     return kind in ("random", "density", "where", "even")
+
