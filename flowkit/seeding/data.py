@@ -2,10 +2,10 @@
 ``where`` (uniform where an expression of scalar fields holds).
 
 Both work cell by cell on the field's own trilinear interpolant, so the draw is exact, not a
-histogram: ``density`` picks a cell with probability equal to the integral of the interpolated
-weight over it (the mean of its 8 corners times its volume), then a point in the cell by
-rejection against the cell's largest corner value, which gives the point density of the
-interpolant itself.  ``where`` keeps only the cells whose corner ranges can satisfy the
+histogram: ``density`` draws points under an envelope (each cell's largest corner weight times its
+volume) and keeps each with probability interpolated weight / largest corner weight, which
+gives the point density of the interpolant itself: a cell gets seeds in proportion to the
+integral of the interpolated weight over it (the mean of its 8 corners times its volume).  ``where`` keeps only the cells whose corner ranges can satisfy the
 expression (an interval test, see flowkit.seeding.expr), picks among them by volume and keeps the
 points where the interpolated values satisfy it.  Cells touching a non-finite vector or weight
 never get seeds.  Results depend only on the random seed.
@@ -126,14 +126,17 @@ def density(field: Field, n: int, attribute: str, seed: int = 0) -> np.ndarray:
     cells = _Cells(field.grid)
     good = cells.valid(field) & cells.reduce(finite, np.logical_and)
     wz = np.where(finite, w, 0.0)
-    mass = np.where(good, cells.reduce(wz, np.add) / 8.0 * cells.volume(), 0.0).ravel()
     peak = np.where(good, cells.reduce(wz, np.maximum), 0.0).ravel()
-    total = mass.sum()
+    # rejection sampling under the envelope peak x volume: a cell is drawn with probability
+    # proportional to its envelope and its point kept with probability f / peak, so a kept
+    # point lies in a cell with probability proportional to its integral of f
+    envelope = peak * cells.volume().ravel()
+    total = envelope.sum()
     if not total > 0:
         raise SeedError(f"{field.source}: '{attribute}' is zero (or not finite) in every valid "
                         "cell: nothing to weigh seeds by")
     rng = np.random.default_rng(seed)
-    prob = mass / total
+    prob = envelope / total
     kept, have = [], 0
     for _ in range(MAX_DRAWS):
         m = 2 * (n - have) + 16

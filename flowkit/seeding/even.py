@@ -52,7 +52,7 @@ def _cell_of(x, lo, inv, ncell, period, a):
     d = x - lo[a]
     if period[a] > 0.0:
         d = d % period[a]
-    i = int(math.floor(d * inv[a]))
+    i = math.floor(d * inv[a])
     return min(max(i, 0), ncell[a] - 1)
 
 
@@ -95,9 +95,10 @@ def _entry(a, p, q, r2, period):
 @njit(cache=True)
 def _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, p, r, line, s, gap, a, out):
     """Vertices within ``r`` of ``p`` that count: any owner when ``line`` < 0, else only the
-    vertices of ``line`` more than ``gap`` of arc length from ``s``.  Returns -1 when none is
-    within r of ``p``; else 0 (``out`` False) or the smallest u in [0, 1] where the segment
-    a + u (p - a) from the previous point ``a`` first comes within r of one of them."""
+    vertices of ``line`` more than ``gap`` of arc length from ``s``.  Without ``out``: 0 when
+    one is within r of ``p``, else -1.  With ``out``: (whether one is within r of ``p``, the
+    smallest u in [0, 1] where the segment a + u (p - a) from the previous point ``a`` comes
+    within r of one of them, -1 if it never does)."""
     ci = _cell_of(p[0], lo, inv, ncell, period, 0)
     cj = _cell_of(p[1], lo, inv, ncell, period, 1)
     ck = _cell_of(p[2], lo, inv, ncell, period, 2)
@@ -131,7 +132,7 @@ def _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, p, r, line, s, ga
                             d = _delta(p, q, period, ax)
                             d2 += d * d
                         if d2 < r2 and not out:
-                            return 0.0
+                            return True, 0.0
                         if out:
                             hit = hit or d2 < r2
                             u = _entry(a, p, q, r2, period)
@@ -140,7 +141,7 @@ def _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, p, r, line, s, ga
                             if u >= 0.0 and (best < 0.0 or u < best):
                                 best = u
                     v = nxt[v]
-    return best if hit else -1.0
+    return hit, best
 
 
 @njit(cache=True)
@@ -158,8 +159,8 @@ def _usable(hp, lo, inv, ncell, period, grid, vec, stag, cand, r):
         u, v, w, bad = trilinear_vector(vec, i, j, k, tx, ty, tz)
         if bad or not u * u + v * v + w * w > stag * stag:
             continue
-        out[c] = _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, cand[c], r, -1,
-                       0.0, 0.0, cand[c], False) < 0.0
+        out[c] = not _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, cand[c], r, -1,
+                           0.0, 0.0, cand[c], False)[0]
     return out
 
 
@@ -194,16 +195,17 @@ def _walk(hp, sp, S, lo, inv, ncell, period, pts, s, first, r, line, gap, add):
     headA, nxtA, ptsA, ownA, sA = hp
     for v in range(first, pts.shape[0]):
         prev = pts[v - 1] if v > 0 else pts[v]
-        u = _near(headA, nxtA, ptsA, ownA, sA, lo, inv, ncell, period, pts[v], r, -1, 0.0, 0.0,
-                  prev, True)
+        hit, u = _near(headA, nxtA, ptsA, ownA, sA, lo, inv, ncell, period, pts[v], r, -1, 0.0,
+                       0.0, prev, True)
         if line >= 0:
             headS, nxtS, ptsS, ownS, sS = sp
-            w = _near(headS, nxtS, ptsS, ownS, sS, lo, inv, ncell, period, pts[v], r, line,
-                      s[v], gap, prev, True)
+            hit2, w = _near(headS, nxtS, ptsS, ownS, sS, lo, inv, ncell, period, pts[v], r, line,
+                            s[v], gap, prev, True)
+            hit = hit or hit2
             if w >= 0.0 and (u < 0.0 or w < u):
                 u = w
-        if u >= 0.0:
-            return v, (u if v > 0 else 0.0)
+        if hit:  # cut where the segment first comes within r of either set
+            return v, (max(u, 0.0) if v > 0 else 0.0)
         if add and line >= 0:
             headS, nxtS, ptsS, ownS, sS = sp
             n = S[0]
@@ -356,7 +358,7 @@ class EvenSeeder:
         p = half_pts
         if len(p) < 2:
             return np.zeros((0, 3))
-        every = max(1, int(round(self.dsep / self.opts.spacing)))
+        every = max(1, round(self.dsep / self.opts.spacing))
         tan = np.gradient(p, axis=0)[::every]
         p = p[::every]
         norm = np.linalg.norm(tan, axis=1)
