@@ -57,6 +57,21 @@ def _cell_of(x, lo, inv, ncell, period, a):
 
 
 @njit(cache=True)
+def _reach(p, lo, inv, ncell, period, r, a):
+    """The cell of p along axis a and the neighbours (-1, 0 or 1 each way) that a ball of
+    radius r <= the cell width reaches: only the sides it crosses (8 cells, not 27, for r at
+    most half a cell)."""
+    d = p[a] - lo[a]
+    if period[a] > 0.0:
+        d = d % period[a]
+    f = d * inv[a]
+    c = min(max(math.floor(f), 0), ncell[a] - 1)
+    below = -1 if (f - r * inv[a]) < c else 0
+    above = 1 if (f + r * inv[a]) >= c + 1 else 0
+    return c, below, above
+
+
+@njit(cache=True)
 def _insert(head, nxt, pts, n0, n1, lo, inv, ncell, period):
     for v in range(n0, n1):
         i = _cell_of(pts[v, 0], lo, inv, ncell, period, 0)
@@ -95,29 +110,29 @@ def _entry(a, p, q, r2, period):
 @njit(cache=True)
 def _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, p, r, line, s, gap, a, out):
     """Vertices within ``r`` of ``p`` that count: any owner when ``line`` < 0, else only the
-    vertices of ``line`` more than ``gap`` of arc length from ``s``.  Without ``out``: 0 when
-    one is within r of ``p``, else -1.  With ``out``: (whether one is within r of ``p``, the
-    smallest u in [0, 1] where the segment a + u (p - a) from the previous point ``a`` comes
-    within r of one of them, -1 if it never does)."""
-    ci = _cell_of(p[0], lo, inv, ncell, period, 0)
-    cj = _cell_of(p[1], lo, inv, ncell, period, 1)
-    ck = _cell_of(p[2], lo, inv, ncell, period, 2)
+    vertices of ``line`` more than ``gap`` of arc length from ``s``.  Returns (whether one is
+    within r of ``p``, u): ``out`` 0 stops at the first, 1 counts them all, 2 also finds u, the
+    smallest in [0, 1] where the segment a + u (p - a) from the previous point ``a`` comes
+    within r of one of them (-1 if it never does)."""
+    ci, i0, i1 = _reach(p, lo, inv, ncell, period, r, 0)
+    cj, j0, j1 = _reach(p, lo, inv, ncell, period, r, 1)
+    ck, k0, k1 = _reach(p, lo, inv, ncell, period, r, 2)
     r2 = r * r
     best = -1.0
     hit = False
-    for di in range(-1, 2):
+    for di in range(i0, i1 + 1):
         i = ci + di
         if period[0] > 0.0:
             i %= ncell[0]
         elif i < 0 or i >= ncell[0]:
             continue
-        for dj in range(-1, 2):
+        for dj in range(j0, j1 + 1):
             j = cj + dj
             if period[1] > 0.0:
                 j %= ncell[1]
             elif j < 0 or j >= ncell[1]:
                 continue
-            for dk in range(-1, 2):
+            for dk in range(k0, k1 + 1):
                 k = ck + dk
                 if period[2] > 0.0:
                     k %= ncell[2]
@@ -131,14 +146,19 @@ def _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, p, r, line, s, ga
                         for ax in range(3):
                             d = _delta(p, q, period, ax)
                             d2 += d * d
-                        if d2 < r2 and not out:
-                            return True, 0.0
-                        if out:
-                            hit = hit or d2 < r2
+                        if d2 < r2:
+                            if not out:
+                                return True, 0.0
+                            hit = True
+                        elif out == 2:  # the segment may still pass within r of q
                             u = _entry(a, p, q, r2, period)
-                            if d2 < r2 and u < 0.0:  # rounding: the root lies at the end
-                                u = 1.0
                             if u >= 0.0 and (best < 0.0 or u < best):
+                                best = u
+                        if d2 < r2 and out == 2:
+                            u = _entry(a, p, q, r2, period)
+                            if u < 0.0:  # rounding: the root lies at the end
+                                u = 1.0
+                            if best < 0.0 or u < best:
                                 best = u
                     v = nxt[v]
     return hit, best
@@ -160,7 +180,7 @@ def _usable(hp, lo, inv, ncell, period, grid, vec, stag, cand, r):
         if bad or not u * u + v * v + w * w > stag * stag:
             continue
         out[c] = not _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, cand[c], r, -1,
-                           0.0, 0.0, cand[c], False)[0]
+                           0.0, 0.0, cand[c], 0)[0]
     return out
 
 
@@ -195,17 +215,24 @@ def _walk(hp, sp, S, lo, inv, ncell, period, pts, s, first, r, line, gap, add):
     headA, nxtA, ptsA, ownA, sA = hp
     for v in range(first, pts.shape[0]):
         prev = pts[v - 1] if v > 0 else pts[v]
-        hit, u = _near(headA, nxtA, ptsA, ownA, sA, lo, inv, ncell, period, pts[v], r, -1, 0.0,
-                       0.0, prev, True)
-        if line >= 0:
+        hit = _near(headA, nxtA, ptsA, ownA, sA, lo, inv, ncell, period, pts[v], r, -1, 0.0,
+                    0.0, prev, 0)[0]
+        if line >= 0 and not hit:
             headS, nxtS, ptsS, ownS, sS = sp
-            hit2, w = _near(headS, nxtS, ptsS, ownS, sS, lo, inv, ncell, period, pts[v], r, line,
-                            s[v], gap, prev, True)
-            hit = hit or hit2
-            if w >= 0.0 and (u < 0.0 or w < u):
-                u = w
+            hit = _near(headS, nxtS, ptsS, ownS, sS, lo, inv, ncell, period, pts[v], r, line,
+                        s[v], gap, prev, 0)[0]
         if hit:  # cut where the segment first comes within r of either set
-            return v, (max(u, 0.0) if v > 0 else 0.0)
+            if v == 0:
+                return v, 0.0
+            u = _near(headA, nxtA, ptsA, ownA, sA, lo, inv, ncell, period, pts[v], r, -1, 0.0,
+                      0.0, prev, 2)[1]
+            if line >= 0:
+                headS, nxtS, ptsS, ownS, sS = sp
+                w = _near(headS, nxtS, ptsS, ownS, sS, lo, inv, ncell, period, pts[v], r, line,
+                          s[v], gap, prev, 2)[1]
+                if w >= 0.0 and (u < 0.0 or w < u):
+                    u = w
+            return v, max(u, 0.0)
         if add and line >= 0:
             headS, nxtS, ptsS, ownS, sS = sp
             n = S[0]
@@ -215,6 +242,33 @@ def _walk(hp, sp, S, lo, inv, ncell, period, pts, s, first, r, line, gap, add):
             _insert(headS, nxtS, ptsS, n, n + 1, lo, inv, ncell, period)
             S[0] = n + 1
     return -1, 0.0
+
+
+@njit(cache=True)
+def _beside(p, every, dsep, ndir):
+    """Points ``dsep`` from every ``every``-th vertex of polyline ``p``, in ``ndir`` directions
+    around its tangent (central differences), in a frame fixed by the axis the tangent is least
+    aligned with."""
+    n = p.shape[0]
+    out = np.empty((((n + every - 1) // every) * ndir if n > 1 else 0, 3))
+    m = 0
+    for v in range(0, n if n > 1 else 0, every):
+        a, b = max(v - 1, 0), min(v + 1, n - 1)
+        t = p[b] - p[a]
+        norm = math.sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2])
+        if norm == 0.0:
+            continue
+        t = t / norm
+        ref = np.zeros(3)
+        ref[np.argmin(np.abs(t))] = 1.0
+        n1 = np.cross(t, ref)
+        n1 /= math.sqrt(n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2])
+        n2 = np.cross(t, n1)
+        for k in range(ndir):
+            ang = 2.0 * math.pi * k / ndir
+            out[m] = p[v] + dsep * (math.cos(ang) * n1 + math.sin(ang) * n2)
+            m += 1
+    return out[:m]
 
 
 class _Hash:
@@ -355,30 +409,16 @@ class EvenSeeder:
 
     def _beside(self, half_pts):
         """Candidates dsep beside a line, about every dsep along it, in six directions."""
-        p = half_pts
-        if len(p) < 2:
-            return np.zeros((0, 3))
         every = max(1, round(self.dsep / self.opts.spacing))
-        tan = np.gradient(p, axis=0)[::every]
-        p = p[::every]
-        norm = np.linalg.norm(tan, axis=1)
-        good = norm > 0
-        p, tan = p[good], tan[good] / norm[good, None]
-        ref = np.eye(3)[np.argmin(np.abs(tan), axis=1)]
-        n1 = np.cross(tan, ref)
-        n1 /= np.linalg.norm(n1, axis=1)[:, None]
-        n2 = np.cross(tan, n1)
-        ang = 2 * np.pi * np.arange(DIRECTIONS) / DIRECTIONS
-        off = (np.cos(ang)[None, :, None] * n1[:, None] + np.sin(ang)[None, :, None] * n2[:, None])
-        return (p[:, None] + self.dsep * off).reshape(-1, 3)
-
+        return _beside(np.ascontiguousarray(half_pts), every, self.dsep, DIRECTIONS)
 
     # -- growing --------------------------------------------------------------------------------
     def _trace(self, starts, sign, length):
         import time
 
         t0 = time.perf_counter()
-        o = self.opts.replace(direction="forward" if sign > 0 else "backward", max_length=length,
+        direction = {1: "forward", -1: "backward", 0: "both"}[sign]
+        o = self.opts.replace(direction=direction, max_length=length,
                               attributes=("time", "arc_length"), progress=False)
         lines = _trace.trace(self.field, starts, o, backend=self.backend)
         self.stats["trace_seconds"] += time.perf_counter() - t0
@@ -400,32 +440,51 @@ class EvenSeeder:
             # a chunk's max_length end continues while the whole line has length left
             total = self.opts.max_length
             more = math.isinf(total) or total - grown > 1e-12 * total
+            fresh = all(not len(h.pts) for _, h in todo)
+            if fresh and len(self.signs) == 2:  # one call for both halves of every line
+                traced = self._trace(seeds, 0, length)
+                self._take(traced, [(i, batch[i]) for i in range(len(seeds))], more, gap)
+                continue
             for sign in self.signs:
                 part = [(i, h) for i, h in todo if h.sign == sign]
-                if not part:
-                    continue
-                starts = np.array([h.pts[-1] if len(h.pts) else seeds[i] for i, h in part])
-                traced = self._trace(starts, sign, length)
-                for k, (i, h) in enumerate(part):
-                    first = len(h.pts)
-                    h.extend(traced.line_points(k), traced.line_attribute("time", k),
-                             traced.line_attribute("arc_length", k))
-                    h.reason = int(traced.line_data["reason"][k])
-                    h.nacc += int(traced.line_data["n_accepted"][k])
-                    h.nrej += int(traced.line_data["n_rejected"][k])
-                    for key in ("stiff", "ros34pw2"):
-                        if key in traced.line_data:
-                            h.flags[key] = max(h.flags.get(key, 0), int(traced.line_data[key][k]))
-                    self.own.reserve(len(h.pts))
-                    count = np.array([self.own.n], np.int64)
-                    v, u = _walk(self.accepted.arrays, self.own.arrays, count,
-                                 *self.accepted.grid, h.pts, h.s, first, self.dtest, i, gap, True)
-                    self.own.n = int(count[0])
-                    if v >= 0:
-                        h.cut(v, u)
-                    elif not (h.reason == MAX_LENGTH and len(h.pts) > 1 and more
-                              and h.nacc + h.nrej < self.opts.max_steps):
-                        h.alive = False  # ended for its own reason (the kernel's)
+                if part:
+                    starts = np.array([h.pts[-1] if len(h.pts) else seeds[i] for i, h in part])
+                    traced = self._trace(starts, sign, length)
+                    self._take(traced, [(i, [h]) for i, h in part], more, gap)
+
+    def _take(self, traced, tasks, more, gap):
+        """Append each traced line to its half (or split it between both halves, seed first
+        in each), then walk the new vertices: cut where too close, else end or continue."""
+        for k, (i, halves) in enumerate(tasks):
+            p, t = traced.line_points(k), traced.line_attribute("time", k)
+            s = traced.line_attribute("arc_length", k)
+            ld = {key: int(v[k]) for key, v in traced.line_data.items()}
+            if len(halves) == 2:  # direction both: backward vertices (s < 0), seed, forward
+                b = int(np.count_nonzero(s < 0))
+                parts = [(p[:b + 1][::-1], t[:b + 1][::-1], s[:b + 1][::-1],
+                          ld["reason_backward"]), (p[b:], t[b:], s[b:], ld["reason"])]
+            else:
+                parts = [(p, t, s, ld["reason"])]
+            for j, (h, (pp, tt, ss, reason)) in enumerate(zip(halves, parts)):
+                first = len(h.pts)
+                h.extend(pp, tt, ss)
+                h.reason = reason
+                if j == len(halves) - 1:  # step counts of the call go to the last half
+                    h.nacc += ld["n_accepted"]
+                    h.nrej += ld["n_rejected"]
+                for key in ("stiff", "ros34pw2"):
+                    if key in ld:
+                        h.flags[key] = max(h.flags.get(key, 0), ld[key])
+                self.own.reserve(len(h.pts))
+                count = np.array([self.own.n], np.int64)
+                v, u = _walk(self.accepted.arrays, self.own.arrays, count, *self.accepted.grid,
+                             h.pts, h.s, first, self.dtest, i, gap, True)
+                self.own.n = int(count[0])
+                if v >= 0:
+                    h.cut(v, u)
+                elif not (h.reason == MAX_LENGTH and len(h.pts) > 1 and more
+                          and h.nacc + h.nrej < self.opts.max_steps):
+                    h.alive = False  # ended for its own reason (the kernel's)
 
     def _accept(self, halves) -> bool:
         """Cut the line against every accepted line; keep it (and hash it) if anything is left."""
