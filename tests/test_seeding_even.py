@@ -141,6 +141,13 @@ def test_options_refused(room):
         evenly_spaced(room, 1.0, attributes=("nope",))
 
 
+def test_stiff_methods_place_vertices_at_their_steps(room):
+    lines = evenly_spaced(room, 2.5, method="auto", direction="both", max_length=3.0,
+                          stagnation=1e-4)
+    assert len(lines) > 3 and "ros34pw2" in lines.line_data
+    assert lines.attrs["method"] == "auto"
+
+
 def test_trace_spec_and_forward_direction(room):
     lines = trace_spec(room, "even:1/10d:0.3:4", TraceOptions(max_length=5.0, stagnation=1e-4))
     assert lines.attrs["seeding"] == "even" and lines.attrs["dsep"] == pytest.approx(1.5)

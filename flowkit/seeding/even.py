@@ -25,6 +25,7 @@ given random seed.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 from numba import njit
@@ -33,7 +34,7 @@ from ..fields import Field
 from ..fields.interp import locate, trilinear_vector
 from ..integrate import attributes as _attributes
 from ..integrate import trace as _trace
-from ..integrate.options import OptionsError, TraceOptions
+from ..integrate.options import STIFF_METHODS, OptionsError, TraceOptions
 from ..integrate.reasons import Reason
 from ..lines import Lines
 
@@ -69,6 +70,35 @@ def _reach(p, lo, inv, ncell, period, r, a):
     below = -1 if (f - r * inv[a]) < c else 0
     above = 1 if (f + r * inv[a]) >= c + 1 else 0
     return c, below, above
+
+
+@njit(cache=True)
+def _cells_near(p, r, lo, inv, ncell, period, out):
+    """The flat indices of the cells a ball of radius r around p reaches (into ``out``, 27
+    long); returns how many."""
+    ci, i0, i1 = _reach(p, lo, inv, ncell, period, r, 0)
+    cj, j0, j1 = _reach(p, lo, inv, ncell, period, r, 1)
+    ck, k0, k1 = _reach(p, lo, inv, ncell, period, r, 2)
+    m = 0
+    for di in range(i0, i1 + 1):
+        i = _step(ci, di, ncell[0], period[0])
+        for dj in range(j0, j1 + 1):
+            j = _step(cj, dj, ncell[1], period[1])
+            for dk in range(k0, k1 + 1):
+                k = _step(ck, dk, ncell[2], period[2])
+                if i >= 0 and j >= 0 and k >= 0:
+                    out[m] = (i * ncell[1] + j) * ncell[2] + k
+                    m += 1
+    return m
+
+
+@njit(cache=True)
+def _step(c, d, n, period):
+    """Cell c + d along an axis of n cells: wrapped when periodic, -1 past a bounded end."""
+    c += d
+    if period > 0.0:
+        return c % n
+    return c if 0 <= c < n else -1
 
 
 @njit(cache=True)
@@ -111,56 +141,37 @@ def _entry(a, p, q, r2, period):
 def _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, p, r, line, s, gap, a, out):
     """Vertices within ``r`` of ``p`` that count: any owner when ``line`` < 0, else only the
     vertices of ``line`` more than ``gap`` of arc length from ``s``.  Returns (whether one is
-    within r of ``p``, u): ``out`` 0 stops at the first, 1 counts them all, 2 also finds u, the
-    smallest in [0, 1] where the segment a + u (p - a) from the previous point ``a`` comes
-    within r of one of them (-1 if it never does)."""
-    ci, i0, i1 = _reach(p, lo, inv, ncell, period, r, 0)
-    cj, j0, j1 = _reach(p, lo, inv, ncell, period, r, 1)
-    ck, k0, k1 = _reach(p, lo, inv, ncell, period, r, 2)
+    within r of ``p``, u): ``out`` 0 stops at the first; 2 also finds u, the smallest in
+    [0, 1] where the segment a + u (p - a) from the previous point ``a`` comes within r of one
+    of them (-1 if it never does)."""
+    cells = np.empty(27, np.int64)
     r2 = r * r
     best = -1.0
     hit = False
-    for di in range(i0, i1 + 1):
-        i = ci + di
-        if period[0] > 0.0:
-            i %= ncell[0]
-        elif i < 0 or i >= ncell[0]:
-            continue
-        for dj in range(j0, j1 + 1):
-            j = cj + dj
-            if period[1] > 0.0:
-                j %= ncell[1]
-            elif j < 0 or j >= ncell[1]:
-                continue
-            for dk in range(k0, k1 + 1):
-                k = ck + dk
-                if period[2] > 0.0:
-                    k %= ncell[2]
-                elif k < 0 or k >= ncell[2]:
-                    continue
-                v = head[(i * ncell[1] + j) * ncell[2] + k]
-                while v >= 0:
-                    q = pts[v]
-                    if line < 0 or (owner[v] == line and abs(sarr[v] - s) > gap):
-                        d2 = 0.0
-                        for ax in range(3):
-                            d = _delta(p, q, period, ax)
-                            d2 += d * d
-                        if d2 < r2:
-                            if not out:
-                                return True, 0.0
-                            hit = True
-                        elif out == 2:  # the segment may still pass within r of q
-                            u = _entry(a, p, q, r2, period)
-                            if u >= 0.0 and (best < 0.0 or u < best):
-                                best = u
-                        if d2 < r2 and out == 2:
-                            u = _entry(a, p, q, r2, period)
-                            if u < 0.0:  # rounding: the root lies at the end
-                                u = 1.0
-                            if best < 0.0 or u < best:
-                                best = u
-                    v = nxt[v]
+    for c in range(_cells_near(p, r, lo, inv, ncell, period, cells)):
+        v = head[cells[c]]
+        while v >= 0:
+            q = pts[v]
+            if line < 0 or (owner[v] == line and abs(sarr[v] - s) > gap):
+                d2 = 0.0
+                for ax in range(3):
+                    d = _delta(p, q, period, ax)
+                    d2 += d * d
+                if d2 < r2:
+                    if not out:
+                        return True, 0.0
+                    hit = True
+                elif out == 2:  # the segment may still pass within r of q
+                    u = _entry(a, p, q, r2, period)
+                    if u >= 0.0 and (best < 0.0 or u < best):
+                        best = u
+                if d2 < r2 and out == 2:
+                    u = _entry(a, p, q, r2, period)
+                    if u < 0.0:  # rounding: the root lies at the end
+                        u = 1.0
+                    if best < 0.0 or u < best:
+                        best = u
+            v = nxt[v]
     return hit, best
 
 
@@ -319,7 +330,6 @@ class _Hash:
         return self.lo, self.inv, self.ncell, self.period
 
 
-
 # -- the seeder ---------------------------------------------------------------------------------
 class _Half:
     """One direction of a line being grown: vertices (from the seed outward), t, s, counts."""
@@ -370,8 +380,8 @@ class EvenSeeder:
         if opts.count is not None:
             raise OptionsError("evenly spaced seeding: option count (resample every line to n "
                                "vertices) cannot apply to lines that are cut; use spacing")
-        if opts.spacing is None:  # vertices close enough for the dtest bound to be tight
-            opts = opts.replace(spacing=0.5 * dtest)
+        if opts.spacing is None and opts.method not in STIFF_METHODS:
+            opts = opts.replace(spacing=0.5 * dtest)  # vertices dense enough for the dtest bound
         self.field, self.dsep, self.dtest, self.opts = field, float(dsep), float(dtest), opts
         self.seed, self.backend, self.max_lines = int(seed), backend, max_lines
         g = field.grid
@@ -389,7 +399,7 @@ class EvenSeeder:
         self.accepted = _Hash(self.bounds, self.period, self.dsep)
         self.own = _Hash(self.bounds, self.period, self.dsep)
         self.lines: list[list[_Half]] = []
-        self.stats = {"candidates": 0, "traced": 0, "rejected": 0, "trace_seconds": 0.0}
+        self.stats = {"traced": 0, "rejected": 0, "trace_seconds": 0.0}
 
     # -- candidates -----------------------------------------------------------------------------
     def _usable(self, cand):
@@ -409,13 +419,15 @@ class EvenSeeder:
 
     def _beside(self, half_pts):
         """Candidates dsep beside a line, about every dsep along it, in six directions."""
-        every = max(1, round(self.dsep / self.opts.spacing))
+        h = self.opts.spacing  # None for the stiff methods: vertices at their steps
+        if h is None:
+            seg = np.linalg.norm(np.diff(half_pts, axis=0), axis=1)
+            h = float(seg.mean()) if len(seg) else self.dsep
+        every = max(1, round(self.dsep / h)) if h > 0 else 1
         return _beside(np.ascontiguousarray(half_pts), every, self.dsep, DIRECTIONS)
 
     # -- growing --------------------------------------------------------------------------------
     def _trace(self, starts, sign, length):
-        import time
-
         t0 = time.perf_counter()
         direction = {1: "forward", -1: "backward", 0: "both"}[sign]
         o = self.opts.replace(direction=direction, max_length=length,
@@ -523,7 +535,6 @@ class EvenSeeder:
             if not n:
                 break
             seeds = picked[:n]
-            self.stats["candidates"] += len(seeds)
             self.stats["traced"] += len(seeds)
             for halves in self._grow(seeds):
                 if self._accept(halves):
@@ -588,7 +599,8 @@ def evenly_spaced(field: Field, dsep: float, dtest: float | None = None,
                   max_lines: int | None = None, **kw) -> Lines:
     """Evenly spaced streamlines of ``field``: lines about ``dsep`` apart, none closer than
     ``dtest`` (default dsep / 2) to another; ``options`` / ``kw`` as for ``flowkit.trace``
-    (spacing defaults to dtest / 2; count is refused).  line_data ``seed`` holds each line's
+    (spacing defaults to dtest / 2, except for the stiff methods, which place vertices at their
+    steps; count is refused).  line_data ``seed`` holds each line's
     seed, ``reason`` (and ``reason_backward``) say ``too_close`` where a half was cut."""
     opts = _trace._options(options, kw)
     return EvenSeeder(field, dsep, dtest, opts, seed=seed, backend=backend,

@@ -88,19 +88,18 @@ class Expression:
         tok = self._peek()
         return tok is not None and tok[1] in texts and tok[0] in ("op", "word")
 
-    def _or(self):
-        node = self._and()
-        while self._is("or", "|"):
+    def _chain(self, sub, words, kind):
+        node = sub()
+        while self._is(*words):
             self._take()
-            node = ("or", node, self._and())
+            node = (kind, node, sub())
         return node
 
+    def _or(self):
+        return self._chain(self._and, ("or", "|"), "or")
+
     def _and(self):
-        node = self._not()
-        while self._is("and", "&"):
-            self._take()
-            node = ("and", node, self._not())
-        return node
+        return self._chain(self._not, ("and", "&"), "and")
 
     def _not(self):
         if self._is("not", "!"):

@@ -15,50 +15,28 @@ import numpy as np
 from numba import njit
 
 from ..lines import Lines
-from .even import _delta, _Hash
+from .even import _cells_near, _delta, _Hash
 
 
 @njit(cache=True)
 def _nearest_owner(head, nxt, pts, owner, sarr, lo, inv, ncell, period, query, r):
     """Owner of the nearest hashed vertex within r of each query point (-1: none)."""
     out = np.full(query.shape[0], -1, np.int64)
+    cells = np.empty(27, np.int64)
     for n in range(query.shape[0]):
         p = query[n]
-        ci = [0, 0, 0]
-        for a in range(3):
-            d = p[a] - lo[a]
-            if period[a] > 0.0:
-                d = d % period[a]
-            ci[a] = min(max(int(np.floor(d * inv[a])), 0), ncell[a] - 1)
         best = r * r
-        for di in range(-1, 2):
-            i = ci[0] + di
-            if period[0] > 0.0:
-                i %= ncell[0]
-            elif i < 0 or i >= ncell[0]:
-                continue
-            for dj in range(-1, 2):
-                j = ci[1] + dj
-                if period[1] > 0.0:
-                    j %= ncell[1]
-                elif j < 0 or j >= ncell[1]:
-                    continue
-                for dk in range(-1, 2):
-                    k = ci[2] + dk
-                    if period[2] > 0.0:
-                        k %= ncell[2]
-                    elif k < 0 or k >= ncell[2]:
-                        continue
-                    v = head[(i * ncell[1] + j) * ncell[2] + k]
-                    while v >= 0:
-                        d2 = 0.0
-                        for a in range(3):
-                            d = _delta(p, pts[v], period, a)
-                            d2 += d * d
-                        if d2 < best:
-                            best = d2
-                            out[n] = owner[v]
-                        v = nxt[v]
+        for c in range(_cells_near(p, r, lo, inv, ncell, period, cells)):
+            v = head[cells[c]]
+            while v >= 0:
+                d2 = 0.0
+                for a in range(3):
+                    d = _delta(p, pts[v], period, a)
+                    d2 += d * d
+                if d2 < best:
+                    best = d2
+                    out[n] = owner[v]
+                v = nxt[v]
     return out
 
 
