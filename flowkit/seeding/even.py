@@ -39,8 +39,8 @@ from ..integrate.reasons import Reason
 from ..lines import Lines
 
 DIRECTIONS = 6  # candidate seeds around the tangent of a line
-MAX_BATCH = 256
-MIN_BATCH = 16
+MAX_BATCH = 1024
+MIN_BATCH = 64
 SELF_GAP = 2.0  # own vertices nearer than this many dsep of arc length never cut a line
 LATTICE = 0.5  # lattice candidates every LATTICE * dsep
 TOO_CLOSE = int(Reason.TOO_CLOSE)
