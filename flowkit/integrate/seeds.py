@@ -359,8 +359,7 @@ def _box_form(s: _Spec, field):
 
 def _random_form(s: _Spec, field):
     s.nparts(1, 2)
-    n = s.count(0)
-    seed = s.count(1, "seed", minimum=0) if len(s.parts) > 1 else 0
+    n, seed = s.count(0), _seed_part(s, 1)
     if field is CHECK_ONLY:
         return None
     if field is None:
