@@ -286,6 +286,14 @@ def _need_field(s: _Spec, field, what: str):
         raise s.error(f"'{s.kind}' {what}: needs a gridded Field, got {type(field).__name__}")
 
 
+def _named(s: _Spec, make, *args):
+    """``make(*args)``, its SeedError restated as an error of the spec ``s``."""
+    try:
+        return make(*args)
+    except SeedError as e:
+        raise s.error(str(e)) from None
+
+
 def _seed_part(s: _Spec, i: int) -> int:
     return s.count(i, "seed", minimum=0) if len(s.parts) > i else 0
 
@@ -298,10 +306,7 @@ def _density_form(s: _Spec, field):
     if field is CHECK_ONLY:
         return None
     _need_field(s, field, "weighs the field's data")
-    try:
-        return density(field, n, s.parts[1].strip(), seed)
-    except SeedError as e:
-        raise s.error(str(e)) from None
+    return _named(s, density, field, n, s.parts[1].strip(), seed)
 
 
 def _where_form(s: _Spec, field):
@@ -318,10 +323,7 @@ def _where_form(s: _Spec, field):
             raise s.error(str(e)) from None
         return None
     _need_field(s, field, "tests the field's data")
-    try:
-        return where(field, s.parts[0], n, seed)
-    except SeedError as e:
-        raise s.error(str(e)) from None
+    return _named(s, where, field, s.parts[0], n, seed)
 
 
 def _points_form(s: _Spec, field):
@@ -338,10 +340,7 @@ def _plane_form(s: _Spec, field):
     nuv = s.counts(3, 2, "nu,nv")
     if nuv is None:
         raise s.error(f"part 4 '{s.parts[3]}' must be nu,nv, 2 comma-separated positive integers")
-    try:
-        return plane(s.point(0), s.point(1), s.point(2), *nuv)
-    except SeedError as e:
-        raise s.error(str(e)) from None
+    return _named(s, plane, s.point(0), s.point(1), s.point(2), *nuv)
 
 
 def _box_form(s: _Spec, field):
@@ -350,11 +349,8 @@ def _box_form(s: _Spec, field):
     rand = len(s.parts) > 3
     if rand and s.parts[3].lower() != "random":
         raise s.error(f"part 4 '{s.parts[3]}' must be the word 'random' (or left out for a lattice)")
-    seed = s.count(4, "seed", minimum=0) if len(s.parts) > 4 else 0
-    try:
-        return box(s.point(0), s.point(1), n, random=rand, seed=seed)
-    except SeedError as e:
-        raise s.error(str(e)) from None
+    seed = _seed_part(s, 4)
+    return _named(s, box, s.point(0), s.point(1), n, rand, seed)
 
 
 def _random_form(s: _Spec, field):
