@@ -54,3 +54,25 @@ def test_every_gallery_style_renders_non_blank_and_distinct(images):
         for b in names[i + 1:]:
             diff = np.abs(images[a].astype(int) - images[b].astype(int)).max(axis=2)
             assert np.mean(diff > 30) > 0.02, f"{a} and {b} look the same"
+
+
+def test_seeding_pair_evenly_spaced_beside_random():
+    """The gallery's seeding pair: the same style on evenly spaced and on random lines (as
+    many of each), both committed; evenly spaced lines use far fewer vertices for the same
+    number of lines (they stop where they would crowd another) and draw a different picture."""
+    text = (ROOT / "docs" / "gallery.md").read_text()
+    for name in ("seeding_random", "seeding_even"):
+        assert (ROOT / "docs" / "gallery" / f"{name}.png").is_file()
+        assert f"gallery/{name}.png" in text
+    even, rand = make_gallery.seeding_lines(fraction=10.0, max_length=6.0)
+    assert len(even) == len(rand) > 10
+    assert even.n_points < 0.7 * rand.n_points
+    style = load_style(make_gallery.STYLES / f"{make_gallery.SEEDING_STYLE}.toml")
+    imgs = []
+    for lines in (even, rand):
+        with LineRenderer(lines) as r:
+            imgs.append(r.render(style, SIZE))
+    for img in imgs:
+        bg = img[0, 0, :3].astype(int)
+        assert np.any(np.abs(img[:, :, :3].astype(int) - bg) > 30, axis=2).mean() > 0.03
+    assert np.mean(np.abs(imgs[0].astype(int) - imgs[1].astype(int)).max(axis=2) > 30) > 0.02

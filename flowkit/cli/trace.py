@@ -1,4 +1,8 @@
-"""``flowkit trace FIELD -o lines.h5 --seeds SPEC [options]``: streamlines to an HDF5 lines file."""
+"""``flowkit trace FIELD -o lines.h5 --seeds SPEC [options]``: streamlines to an HDF5 lines file.
+
+Seeds: points, rakes, boxes and random draws; seeds from the data (``density:N:ATTRIBUTE``,
+``where:EXPR:N``); or ``even:DSEP[:DTEST]``, evenly spaced lines (docs/seeding.md).
+``--prune DIST[:FRACTION]`` then drops lines that run beside a longer one."""
 
 from __future__ import annotations
 
@@ -27,7 +31,8 @@ def register(subparsers) -> None:
     p.add_argument("--max-length", type=float, default=math.inf)
     p.add_argument("--max-time", type=float, default=math.inf)
     p.add_argument("--max-steps", type=int, default=100_000)
-    p.add_argument("--direction", default="forward", choices=["forward", "backward", "both"])
+    p.add_argument("--direction", choices=["forward", "backward", "both"],
+                   help="default forward; both for --seeds even")
     p.add_argument("--parameter", default="time", choices=["time", "arc_length"])
     p.add_argument("--cell-aware", dest="cell_aware", action=argparse.BooleanOptionalAction,
                    default=True,
@@ -37,6 +42,9 @@ def register(subparsers) -> None:
                    "distance_to_seed, or a scalar field's name)")
     p.add_argument("--spacing", type=float, help="resample vertices to this arc-length spacing")
     p.add_argument("--count", type=int, help="resample every line to this many vertices")
+    p.add_argument("--prune", metavar="DIST[:FRACTION]",
+                   help="after tracing, drop each line within DIST of a longer line along at "
+                        "least FRACTION of its vertices (default 0.8); recorded in the file")
     p.add_argument("--float64", action="store_true", help="store positions as float64")
     p.add_argument("--backend", default="numba", help="numba (default) or opencl[:PLATFORM[:DEVICE]]")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -47,30 +55,63 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from ..fields.readers import load_field
     from ..integrate.options import TraceOptions
-    from ..integrate.seeds import parse_seed_spec
+    from ..integrate.seeds import parse_even_spec, parse_seed_spec
     from ..integrate.trace import trace_to_file
+    from . import CLIError
 
+    even = parse_even_spec(args.seeds)
+    direction = args.direction or ("both" if even is not None else "forward")
     opts = TraceOptions(
         method=args.method, rtol=args.rtol, atol=args.atol, step=args.step,
         max_length=args.max_length, max_time=args.max_time, max_steps=args.max_steps,
-        direction=args.direction, parameter=args.parameter, cell_aware=args.cell_aware,
+        direction=direction, parameter=args.parameter, cell_aware=args.cell_aware,
         attributes=args.attributes, spacing=args.spacing, count=args.count,
         progress=False if args.quiet else None,
     )
     from ..distributed import cli as scale
 
     if scale.wanted(args):  # --workers, --scheduler, series, pathlines: flowkit/distributed/cli.py
+        if even is not None or args.prune:
+            raise CLIError("flowkit trace: --seeds even and --prune place lines against each "
+                           "other in one process; they do not run on workers, series or pathlines")
         return scale.run(args, opts)
+    prune = None
+    if args.prune:
+        from ..seeding.prune import parse_prune
+
+        try:
+            prune = parse_prune(args.prune)
+        except ValueError as e:
+            raise CLIError(f"flowkit trace: {e}") from None
     field = load_field(args.field, vector=args.vector)
-    seeds = parse_seed_spec(args.seeds, field)
+    seeds = None if even is not None else parse_seed_spec(args.seeds, field)
     if math.isinf(opts.max_length) and math.isinf(opts.max_time) and args.max_steps == 100_000:
         print("flowkit trace: note: no --max-length or --max-time; lines end at the boundary, "
               "a stagnation point or after --max-steps", file=sys.stderr)
+    dtype = "float64" if args.float64 else "float32"
     t0 = time.perf_counter()
-    path = trace_to_file(field, seeds, args.output, opts, backend=args.backend,
-                         position_dtype="float64" if args.float64 else "float32")
+    if even is None and prune is None:  # streamed, memory bounded by one batch
+        path = trace_to_file(field, seeds, args.output, opts, backend=args.backend,
+                             position_dtype=dtype)
+        what = f"{len(seeds)} seeds traced"
+    else:
+        from ..io.lines_h5 import write_lines
+        from ..seeding import trace_spec
+        from ..seeding.prune import prune as prune_lines
+
+        lines = trace_spec(field, args.seeds, opts, backend=args.backend)
+        what = f"{len(lines)} lines traced"
+        if prune is not None:
+            n = len(lines)
+            lines = prune_lines(lines, *prune, period=field.grid.period)
+            what += f", {n - len(lines)} pruned"
+        path = write_lines(lines, args.output, position_dtype=dtype, attrs={"seeds": args.seeds})
     dt = time.perf_counter() - t0
     if not args.quiet:
-        rate = len(seeds) / dt if dt > 0 else float("inf")
-        print(f"{len(seeds)} seeds traced in {dt:.2f} s ({rate:.0f} seeds/s) -> {path}")
+        if seeds is not None:
+            rate = len(seeds) / dt if dt > 0 else float("inf")
+            what += f" in {dt:.2f} s ({rate:.0f} seeds/s)"
+        else:
+            what += f" in {dt:.2f} s"
+        print(f"{what} -> {path}")
     return 0

@@ -13,6 +13,7 @@ class Reason(IntEnum):
     NAN_FIELD = 6       # the line ran into a cell with NaN/inf nodes
     SEED_OUTSIDE = 7    # seed outside the domain or in a NaN cell
     LEFT_TIME_RANGE = 8  # pathlines: left the time range covered by the snapshots
+    TOO_CLOSE = 9       # evenly spaced seeding: came within the test distance of another line
 
     @property
     def label(self) -> str:

@@ -12,7 +12,13 @@
   with ``numpy.random.default_rng(seed)``.
 - ``random_in(domain, n, seed=0)``: n uniform random points in a Field's grid (points in NaN
   cells rejected and redrawn), a Grid, an analytic field (its ``default_bounds``) or (3, 2) bounds.
-- ``parse_seed_spec(spec, field=None)``: the CLI's ``--seeds`` value, see ``SPEC_HELP``.
+- ``parse_seed_spec(spec, field=None)``: the CLI's ``--seeds`` value, see ``SPEC_HELP``;
+  ``density`` and ``where`` draw from the field's data (flowkit.seeding.data).
+- ``line_spec``, ``plane_spec``, ``points_spec``: the spec strings of those forms (exact: they
+  parse back to the same points), e.g. for a rake placed in the viewer.
+
+``even:DSEP[:DTEST[:SEED]]`` grows evenly spaced lines rather than giving seed points: it is
+parsed by ``parse_even_spec`` and traced by ``flowkit.seeding.trace_spec``.
 
 Errors are ``SeedError`` (a ValueError) naming the file, line, spec or argument at fault.
 """
@@ -31,13 +37,20 @@ from ..fields.interp import INSIDE
 SPEC_HELP = (
     "a .npy/.csv/.txt file of x,y,z points; points:x,y,z[:x,y,z...]; "
     "line:x0,y0,z0:x1,y1,z1:n; plane:ox,oy,oz:ux,uy,uz:vx,vy,vz:nu,nv; "
-    "box:x0,y0,z0:x1,y1,z1:n[:random[:seed]] (n or nx,ny,nz); random:n[:seed] (in the field)"
+    "box:x0,y0,z0:x1,y1,z1:n[:random[:seed]] (n or nx,ny,nz); random:n[:seed] (in the field); "
+    "density:n:ATTRIBUTE[:seed] (probability proportional to speed, vorticity_magnitude, a "
+    "scalar or grad(SCALAR)); where:EXPR:n[:seed] (uniform where EXPR holds, e.g. T>302 and "
+    "speed<0.1); even:DSEP[:DTEST[:seed]] (evenly spaced lines; lengths in world units, or "
+    "with a d suffix a fraction of the domain diagonal, e.g. 1/30d)"
 )
 FILE_TYPES = (".npy", ".csv", ".txt")
 
 
 class SeedError(ValueError):
     """Seeds that cannot be made: bad file, bad spec, bad arguments."""
+
+
+CHECK_ONLY = object()  # as parse_seed_spec's field: check the spec's own parts, make no seeds
 
 
 def points(values, where: str = "seed points") -> np.ndarray:
@@ -200,14 +213,23 @@ def _bounds(domain) -> np.ndarray:
 def parse_seed_spec(spec: str, field=None) -> np.ndarray:
     """Seeds from a spec string: a file path or ``kind:part:part...`` (see ``SPEC_HELP``).
 
-    ``random`` needs ``field`` (Field, Grid, analytic field or bounds) for its domain.
+    ``random`` needs ``field`` (Field, Grid, analytic field or bounds) for its domain,
+    ``density`` and ``where`` a Field.  With ``field=CHECK_ONLY`` the spec is only checked
+    (even, and the parts no field decides) and None is returned.
     """
     spec = str(spec).strip()
     kind, sep, rest = spec.partition(":")
+    if sep and kind.lower() == "even":
+        parse_even_spec(spec)  # a malformed spec says what is wrong with it first
+        if field is CHECK_ONLY:
+            return None
+        raise SeedError(f"seed spec '{spec}': 'even' grows evenly spaced lines, it gives no seed "
+                        "points by itself; trace it with flowkit.seeding.trace_spec (the CLI and "
+                        "scenes do)")
     parse = _FORMS.get(kind.lower()) if sep else None
     if parse is None:
         if Path(spec).suffix.lower() in FILE_TYPES:
-            return from_file(spec)
+            return None if field is CHECK_ONLY else from_file(spec)
         raise SeedError(f"seed spec '{spec}': not a seed file nor a known form; allowed: {SPEC_HELP}")
     return parse(_Spec(spec, kind.lower(), rest.split(":")), field)
 
@@ -257,6 +279,53 @@ class _Spec:
         return vals
 
 
+def _need_field(s: _Spec, field, what: str):
+    if field is None:
+        raise s.error(f"'{s.kind}' {what}, but no field was given")
+    if not isinstance(field, Field):
+        raise s.error(f"'{s.kind}' {what}: needs a gridded Field, got {type(field).__name__}")
+
+
+def _named(s: _Spec, make, *args):
+    """``make(*args)``, its SeedError restated as an error of the spec ``s``."""
+    try:
+        return make(*args)
+    except SeedError as e:
+        raise s.error(str(e)) from None
+
+
+def _seed_part(s: _Spec, i: int) -> int:
+    return s.count(i, "seed", minimum=0) if len(s.parts) > i else 0
+
+
+def _density_form(s: _Spec, field):
+    from ..seeding.data import density
+
+    s.nparts(2, 3)
+    n, seed = s.count(0), _seed_part(s, 2)
+    if field is CHECK_ONLY:
+        return None
+    _need_field(s, field, "weighs the field's data")
+    return _named(s, density, field, n, s.parts[1].strip(), seed)
+
+
+def _where_form(s: _Spec, field):
+    from ..seeding.data import where
+
+    s.nparts(2, 3)
+    n, seed = s.count(1), _seed_part(s, 2)
+    if field is CHECK_ONLY:
+        from ..seeding.expr import Expression, ExpressionError
+
+        try:
+            Expression(s.parts[0])  # the grammar; the names are the field's to check
+        except ExpressionError as e:
+            raise s.error(str(e)) from None
+        return None
+    _need_field(s, field, "tests the field's data")
+    return _named(s, where, field, s.parts[0], n, seed)
+
+
 def _points_form(s: _Spec, field):
     return np.array([s.point(i) for i in range(len(s.parts))], dtype=np.float64)
 
@@ -271,10 +340,7 @@ def _plane_form(s: _Spec, field):
     nuv = s.counts(3, 2, "nu,nv")
     if nuv is None:
         raise s.error(f"part 4 '{s.parts[3]}' must be nu,nv, 2 comma-separated positive integers")
-    try:
-        return plane(s.point(0), s.point(1), s.point(2), *nuv)
-    except SeedError as e:
-        raise s.error(str(e)) from None
+    return _named(s, plane, s.point(0), s.point(1), s.point(2), *nuv)
 
 
 def _box_form(s: _Spec, field):
@@ -283,28 +349,116 @@ def _box_form(s: _Spec, field):
     rand = len(s.parts) > 3
     if rand and s.parts[3].lower() != "random":
         raise s.error(f"part 4 '{s.parts[3]}' must be the word 'random' (or left out for a lattice)")
-    seed = s.count(4, "seed", minimum=0) if len(s.parts) > 4 else 0
-    try:
-        return box(s.point(0), s.point(1), n, random=rand, seed=seed)
-    except SeedError as e:
-        raise s.error(str(e)) from None
+    seed = _seed_part(s, 4)
+    return _named(s, box, s.point(0), s.point(1), n, rand, seed)
 
 
 def _random_form(s: _Spec, field):
     s.nparts(1, 2)
+    n, seed = s.count(0), _seed_part(s, 1)
+    if field is CHECK_ONLY:
+        return None
     if field is None:
         raise s.error("'random' draws in the field's domain, but no field was given")
-    n = s.count(0)
-    seed = s.count(1, "seed", minimum=0) if len(s.parts) > 1 else 0
     return random_in(field, n, seed)
 
 
 _FORMS = {"points": _points_form, "line": _line_form, "plane": _plane_form, "box": _box_form,
-          "random": _random_form}
+          "random": _random_form, "density": _density_form, "where": _where_form}
 _USAGE = {
     "points": "points:x,y,z[:x,y,z...]",
     "line": "line:x0,y0,z0:x1,y1,z1:n",
     "plane": "plane:ox,oy,oz:ux,uy,uz:vx,vy,vz:nu,nv",
     "box": "box:x0,y0,z0:x1,y1,z1:n[:random[:seed]] (n or nx,ny,nz)",
     "random": "random:n[:seed]",
+    "density": "density:n:ATTRIBUTE[:seed] (ATTRIBUTE: speed, vorticity_magnitude, a scalar "
+               "field or grad(SCALAR))",
+    "where": "where:EXPR:n[:seed] (EXPR: scalar names, numbers, < <= > >= == !=, and or not, "
+             "parentheses)",
+    "even": "even:DSEP[:DTEST[:seed]] (world units, or a fraction of the domain diagonal with a "
+            "d suffix: 0.05d, 1/30d; DTEST default DSEP/2)",
 }
+
+
+# -- evenly spaced lines ---------------------------------------------------------------------
+class Length:
+    """A length in world units, or ``fraction`` of the domain diagonal (``relative``)."""
+
+    def __init__(self, value: float, relative: bool = False):
+        self.value, self.relative = float(value), bool(relative)
+
+    def resolve(self, diagonal: float) -> float:
+        return self.value * diagonal if self.relative else self.value
+
+    def __eq__(self, other):
+        return isinstance(other, Length) and (self.value, self.relative) == (other.value,
+                                                                             other.relative)
+
+    def __repr__(self):
+        return f"{self.value!r}{'d' if self.relative else ''}"
+
+
+class EvenSpec:
+    """``even:DSEP[:DTEST[:SEED]]`` parsed: dsep, dtest (None: dsep / 2) and the random seed."""
+
+    def __init__(self, dsep: Length, dtest: Length | None, seed: int):
+        self.dsep, self.dtest, self.seed = dsep, dtest, seed
+
+    def distances(self, diagonal: float) -> tuple[float, float]:
+        dsep = self.dsep.resolve(diagonal)
+        dtest = 0.5 * dsep if self.dtest is None else self.dtest.resolve(diagonal)
+        return dsep, dtest
+
+
+def _length(s: _Spec, i: int, name: str) -> Length:
+    text = s.parts[i].strip().lower()
+    rel = text.endswith("d")
+    num = text[:-1] if rel else text
+    try:
+        a, slash, b = num.partition("/")
+        value = float(a) / float(b) if slash else float(a)
+    except (ValueError, ZeroDivisionError):
+        value = None
+    if value is None or not np.isfinite(value) or value <= 0:
+        raise s.error(f"part {i + 1} '{s.parts[i]}' must be {name}, a positive length (world "
+                      "units, or a fraction of the domain diagonal with a d suffix: 0.05d, 1/30d)")
+    return Length(value, rel)
+
+
+def parse_even_spec(spec: str) -> EvenSpec | None:
+    """The parsed ``even:`` spec, or None when ``spec`` is another form."""
+    spec = str(spec).strip()
+    kind, sep, rest = spec.partition(":")
+    if not sep or kind.lower() != "even":
+        return None
+    s = _Spec(spec, "even", rest.split(":"))
+    s.nparts(1, 3)
+    dsep = _length(s, 0, "DSEP")
+    dtest = _length(s, 1, "DTEST") if len(s.parts) > 1 and s.parts[1].strip() else None
+    if dtest is not None and dtest.relative == dsep.relative and not dtest.value < dsep.value:
+        raise s.error(f"DTEST {dtest!r} must be smaller than DSEP {dsep!r}")
+    return EvenSpec(dsep, dtest, _seed_part(s, 2))
+
+
+# -- spec strings of the point forms (exact: repr of a float parses back to the same float) ---
+def _point_text(p) -> str:
+    return ",".join(repr(float(v)) for v in points(p)[0])
+
+
+def line_spec(p0, p1, n: int) -> str:
+    """The spec of ``line(p0, p1, n)``."""
+    return f"line:{_point_text(p0)}:{_point_text(p1)}:{_count(n, 'line: n')}"
+
+
+def plane_spec(origin, u, v, nu: int, nv: int) -> str:
+    """The spec of ``plane(origin, u, v, nu, nv)``."""
+    return (f"plane:{_point_text(origin)}:{_point_text(u)}:{_point_text(v)}:"
+            f"{_count(nu, 'plane: nu')},{_count(nv, 'plane: nv')}")
+
+
+def points_spec(values) -> str:
+    """The spec of explicit points (at least one)."""
+    p = points(values)
+    if not len(p):
+        raise SeedError("points spec: needs at least one point")
+    return "points:" + ":".join(_point_text(q) for q in p)

@@ -489,8 +489,9 @@ def _read(f: h5py.File, path: Path, attributes) -> Lines:
         raise LinesFileError(f"{path}: rowSize disagrees with VTKHDF/Lines/Offsets")
     point_data = {k: vtk["PointData"][k][...] for k in point_names if k in wanted}
     line_data = {k: vtk["CellData"][k][...] for k in line_names if k in wanted}
-    if "reason" in line_data:
-        line_data["reason"] = _current_reason_codes(f, line_data["reason"], path)
+    for name in ("reason", "reason_backward"):
+        if name in line_data:
+            line_data[name] = _current_reason_codes(f, line_data[name], path)
     attrs = _get_attrs(f)
     units = _units(f)
     if units:
@@ -521,15 +522,12 @@ def read_units(path) -> dict[str, str]:
     """The units the file gives (CF ``units`` attributes): ``"position"`` for x, y, z, and each
     point or line attribute that has them; names without units are left out."""
     path = Path(path)
-    out = {}
     with _open(path) as f:
-        if "x" in f and "units" in f["x"].attrs:
-            out["position"] = f["x"].attrs["units"]
-        for group in ("VTKHDF/PointData", "VTKHDF/CellData"):
-            for name, ds in f.get(group, {}).items():
-                if "units" in ds.attrs:
-                    out[name] = ds.attrs["units"]
-    return {k: v.decode() if isinstance(v, bytes) else str(v) for k, v in out.items()}
+        out = _units(f)
+        u = f["x"].attrs.get("units") if "x" in f else None
+        if u is not None:
+            out = {"position": u.decode() if isinstance(u, bytes) else str(u), **out}
+    return out
 
 
 def _attribute_names(f: h5py.File) -> tuple[list[str], list[str]]:
@@ -653,11 +651,12 @@ def _summary(f: h5py.File, path: Path) -> str:
         out.append("  bounds: " + "  ".join(
             f"{a} [{lo:.6g}, {hi:.6g}]" for a, (lo, hi) in zip("xyz", _ranges(vtk["Points"]))))
     point_names, line_names = _attribute_names(f)
-    if "reason" in line_names:
-        reasons = _current_reason_codes(f, vtk["CellData/reason"][...], path)
-        codes, n = np.unique(reasons, return_counts=True)
-        out.append("  reasons: " + ", ".join(
-            f"{Reason(c).label} {k}" for c, k in zip(codes.tolist(), n.tolist())))
+    for name, title in (("reason", "reasons"), ("reason_backward", "reasons backward")):
+        if name in line_names:  # direction both: the forward half's, then the backward half's
+            reasons = _current_reason_codes(f, vtk[f"CellData/{name}"][...], path)
+            codes, n = np.unique(reasons, return_counts=True)
+            out.append(f"  {title}: " + ", ".join(
+                f"{Reason(c).label} {k}" for c, k in zip(codes.tolist(), n.tolist())))
     for title, group, names in (("point", vtk.get("PointData"), point_names),
                                 ("line", vtk.get("CellData"), line_names)):
         if names:

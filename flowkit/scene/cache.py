@@ -72,7 +72,7 @@ class LinesCache:
         ref = snap.ref
         path, inner = (ref.path, ref.snapshot) if isinstance(ref, SnapshotRef) else (ref, None)
         seeds = plan.scene.seeds
-        seed_in = {"spec": seeds}
+        seed_in = {"spec": seeds, "prune": plan.scene.prune}
         if Path(seeds).suffix.lower() in FILE_TYPES and Path(seeds).is_file():
             seed_in["file_digest"] = self._digest(Path(seeds))
         opts = {k: v for k, v in dataclasses.asdict(plan.options).items()

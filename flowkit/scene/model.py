@@ -12,6 +12,8 @@
 
     [seeds]
     spec = "plane:0.5,0.5,0.5:9,0,0:0,0,9:16,16"   # any --seeds spec (files relative to here)
+    # spec = "even:1/30d"    # evenly spaced lines (direction both unless [trace] says)
+    prune = "0.2:0.8"        # optional: drop lines beside a longer one (as --prune)
 
     [trace]                  # TraceOptions by name (method, rtol, max_length, direction, ...)
     max_length = 20.0
@@ -53,7 +55,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..integrate.options import OptionsError, TraceOptions
-from ..integrate.seeds import FILE_TYPES, SeedError, parse_seed_spec
+from ..integrate.seeds import CHECK_ONLY, FILE_TYPES, SeedError, parse_even_spec, parse_seed_spec
 from ..render.animate import FORMATS as ANIMATION_FORMATS
 from ..render.camera import Camera
 from ..render.style import (
@@ -126,6 +128,7 @@ class Scene:
     extra_attributes: tuple[str, ...] = ()
     cache_dir: Path | None = None
     cache_enabled: bool = True
+    prune: tuple[float, float] | None = None  # (distance, fraction) from [seeds] prune
     version: int = SCENE_VERSION
 
     @property
@@ -171,14 +174,16 @@ def _scene(data: dict, path: Path | None, where: str) -> Scene:
         if key not in data:
             raise SceneError(f"{where}: missing table [{key}]")
     fsrc = _field(f"{where} [field]", data["field"], base)
-    seeds = _seeds(f"{where} [seeds]", data["seeds"], base)
+    seeds, prune = _seeds(f"{where} [seeds]", data["seeds"], base)
     trace, extra = _trace(f"{where} [trace]", data.get("trace", {}))
+    if parse_even_spec(seeds) is not None and "direction" not in data.get("trace", {}):
+        trace = trace.replace(direction="both")  # as the CLI: even lines grow both ways
     styles, sources = _styles(f"{where} [styles]", data["styles"], base)
     views = _views(where, data.get("views", {}), styles)
     outputs = _outputs(f"{where} [outputs]", data.get("outputs", {}), views)
     cache_dir, enabled = _cache(f"{where} [cache]", data.get("cache", {}), base)
     return Scene(path, fsrc, seeds, trace, styles, sources, views, outputs, extra, cache_dir,
-                 enabled)
+                 enabled, prune)
 
 
 def _string(where, key, v) -> str:
@@ -220,23 +225,31 @@ def snapshot_selection(where: str, key: str, v) -> str | int | tuple[int, ...]:
     _fail(where, key, v, allowed)
 
 
-def _seeds(where: str, t, base: Path) -> str:
+def _seeds(where: str, t, base: Path) -> tuple[str, tuple[float, float] | None]:
     if not isinstance(t, dict):
         _fail(where.rsplit(" ", 1)[0], "seeds", t, "a table [seeds] with spec = '...'")
-    _check_keys(where, t, {"spec"})
+    _check_keys(where, t, {"spec", "prune"})
+    prune = None
+    if "prune" in t:
+        from ..seeding.prune import parse_prune
+
+        try:
+            prune = parse_prune(_string(where, "prune", t["prune"]))
+        except ValueError:
+            _fail(where, "prune", t["prune"], "'DIST[:FRACTION]', a positive distance and a "
+                  "fraction in (0, 1] (default 0.8)")
     if "spec" not in t:
         raise SceneError(f"{where}: missing key 'spec' (a seeds spec, e.g. "
                          "'plane:ox,oy,oz:ux,uy,uz:vx,vy,vz:nu,nv')")
     spec = _string(where, "spec", t["spec"]).strip()
     if Path(spec).suffix.lower() in FILE_TYPES and ":" not in spec.split("/")[0]:
         p = Path(spec).expanduser()
-        return str(p if p.is_absolute() else base / p)
-    if not spec.lower().startswith("random:"):  # random needs the field: checked when run
-        try:
-            parse_seed_spec(spec)
-        except SeedError as e:
-            raise SceneError(f"{where}: spec = {spec!r} is not allowed: {e}") from None
-    return spec
+        return str(p if p.is_absolute() else base / p), prune
+    try:  # what a field decides (random's domain, density's attribute) is checked when run
+        parse_seed_spec(spec, CHECK_ONLY)
+    except SeedError as e:
+        raise SceneError(f"{where}: spec = {spec!r} is not allowed: {e}") from None
+    return spec, prune
 
 
 def _trace(where: str, t: dict) -> tuple[TraceOptions, tuple[str, ...]]:

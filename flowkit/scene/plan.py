@@ -18,7 +18,7 @@ import numpy as np
 from ..fields.readers import SnapshotRef, load_field, load_series
 from ..integrate.attributes import ATTRIBUTES
 from ..integrate.options import TraceOptions
-from ..integrate.seeds import parse_seed_spec
+from ..integrate.seeds import parse_even_spec, parse_seed_spec
 from ..render.style import ColorMap
 from .model import Scene, SceneError, snapshot_selection
 
@@ -54,7 +54,10 @@ class Plan:
     uses: dict[str, tuple[str, ...]]      # attribute -> who reads it
     options: TraceOptions                 # the scene's options with attributes = the set
 
-    def seed_points(self, field) -> np.ndarray:
+    def seed_points(self, field) -> np.ndarray | None:
+        """The seed points, or None for evenly spaced lines (they place their own seeds)."""
+        if parse_even_spec(self.scene.seeds) is not None:
+            return None
         return parse_seed_spec(self.scene.seeds, field)
 
     def explain(self, cache=None) -> str:
@@ -153,7 +156,8 @@ def explain(plan: Plan, cache=None) -> str:
              f"field: {src.kind} {src.location} (vector {src.vector})",
              f"snapshots: {len(plan.snapshots)} of the series: "
              + ", ".join(f"{s.index} (t = {s.time:g})" for s in plan.snapshots),
-             f"seeds: {sc.seeds}"]
+             f"seeds: {sc.seeds}" + (f", pruned at distance {sc.prune[0]:g} over "
+                                      f"{sc.prune[1]:.0%} of a line" if sc.prune else "")]
     o = plan.options
     lines.append(f"trace: {o.method}, rtol {o.rtol}, direction {o.direction}, parameter "
                  f"{o.parameter}, max_length {o.max_length:g}, max_time {o.max_time:g}"

@@ -23,6 +23,8 @@ import numpy as np
 from ..integrate import attributes as _attributes
 from ..integrate import trace as tracing
 from ..lines import Lines
+from ..seeding import needs_field, trace_spec
+from ..seeding.prune import prune
 from .cache import LinesCache
 from .model import Scene, load_scene, placeholders
 from .plan import Plan, Snapshot, make_plan, still_views
@@ -108,8 +110,9 @@ def _trace_on_cluster(plan: Plan, cache, workers: int, notes: list, report) -> d
         notes.append(f"--workers {workers}: the Dask scale-out (flowkit.distributed) is not "
                      "available; snapshots run one after the other")
         return {}
-    if plan.scene.seeds.lower().startswith("random:"):
-        notes.append(f"--workers {workers}: random seeds are drawn in each snapshot's field; "
+    if needs_field(plan.scene.seeds) or plan.scene.prune:
+        notes.append(f"--workers {workers}: {plan.scene.seeds.split(':')[0]} seeds are placed in "
+                     "each snapshot's field (and pruning compares lines with each other); "
                      "snapshots run one after the other")
         return {}
     import tempfile
@@ -199,7 +202,8 @@ def _run_snapshot(plan: Plan, snap: Snapshot, cache: LinesCache | None, out: Pat
         with _Stage(res, "load field", report) as st:
             fld = snap.load(scene.field.vector)
             seeds = plan.seed_points(fld)
-            st.msg = f"{fld.grid.shape} nodes, {len(seeds)} seeds"
+            st.msg = f"{fld.grid.shape} nodes, " + (
+                f"{len(seeds)} seeds" if seeds is not None else "evenly spaced seeding")
         if res.action == "extend":
             with _Stage(res, "attributes", report) as st:
                 lines = _extend(cache.read(entry), fld, seeds, missing)
@@ -207,8 +211,16 @@ def _run_snapshot(plan: Plan, snap: Snapshot, cache: LinesCache | None, out: Pat
                 st.msg = f"{', '.join(missing)} computed on {lines.n_points} cached vertices"
         else:
             with _Stage(res, "trace", report) as st:
-                lines = tracing.trace(fld, seeds, plan.options)
-                st.msg = (f"{len(lines)} lines, {lines.n_points} vertices, attributes "
+                if seeds is not None:
+                    lines = tracing.trace(fld, seeds, plan.options)
+                else:
+                    lines = trace_spec(fld, scene.seeds, plan.options)
+                pruned = ""
+                if scene.prune is not None:
+                    n = len(lines)
+                    lines = prune(lines, *scene.prune, period=fld.grid.period)
+                    pruned = f" ({n - len(lines)} pruned)"
+                st.msg = (f"{len(lines)} lines{pruned}, {lines.n_points} vertices, attributes "
                           f"{', '.join(plan.attributes) or 'none'}")
             if cache is not None:
                 with _Stage(res, "cache", report) as st:
@@ -252,9 +264,13 @@ def _only(lines: Lines, names) -> Lines:
     return Lines(lines.points, lines.offsets, pd, lines.line_data, lines.attrs)
 
 
-def _extend(lines: Lines, fld, seeds: np.ndarray, missing) -> Lines:
-    """Add attributes that depend only on the vertices, as the integrator computes them."""
-    seed_of = seeds[np.repeat(lines.line_data["seed_id"], lines.lengths)]
+def _extend(lines: Lines, fld, seeds: np.ndarray | None, missing) -> Lines:
+    """Add attributes that depend only on the vertices, as the integrator computes them
+    (evenly spaced lines carry their seeds in line_data ``seed``)."""
+    if "seed" in lines.line_data:
+        seed_of = np.repeat(lines.line_data["seed"], lines.lengths, axis=0)
+    else:
+        seed_of = seeds[np.repeat(lines.line_data["seed_id"], lines.lengths)]
     new = _attributes.compute(fld, missing, lines.points, None, None, seed_of)
     pd = {**lines.point_data, **new}
     return Lines(lines.points, lines.offsets, pd, lines.line_data,

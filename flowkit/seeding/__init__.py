@@ -1,0 +1,31 @@
+"""Seeding that controls clutter: evenly spaced lines (``even``), seeds drawn from the data
+(``data``: density, where), similarity pruning (``prune``), and ``trace_spec``, which traces any
+``--seeds`` spec, the kinds that are seed points and the kind that grows lines alike."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..integrate.seeds import parse_even_spec, parse_seed_spec
+
+
+def trace_spec(field, spec: str, options=None, *, backend="numba", **kw):
+    """Lines of ``field`` from the seed spec ``spec`` (any ``--seeds`` form, ``even`` included);
+    ``options``/``kw`` as for ``flowkit.trace``."""
+    from ..integrate.trace import _options, trace
+    from .even import evenly_spaced
+
+    opts = _options(options, kw)
+    even = parse_even_spec(spec)
+    if even is None:
+        return trace(field, parse_seed_spec(spec, field), opts, backend=backend)
+    diag = float(np.linalg.norm(np.diff(field.grid.bounds, axis=1)))
+    dsep, dtest = even.distances(diag)
+    return evenly_spaced(field, dsep, dtest, opts, seed=even.seed, backend=backend)
+
+
+def needs_field(spec: str) -> bool:
+    """True for specs whose seeds depend on the field's data (random, density, where, even)."""
+    kind = str(spec).strip().partition(":")[0].lower()
+    return kind in ("random", "density", "where", "even")
+
