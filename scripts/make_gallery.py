@@ -67,7 +67,7 @@ def render_seeding(size, out=OUT, **kw):
     paths = []
     for name, lines in (("seeding_random", rand), ("seeding_even", even)):
         with LineRenderer(lines) as r:
-            paths.append(save_png(r.render(style, size), out / f"{name}.png"))
+            paths.append(save_png(r.render(style, size, overlays=True), out / f"{name}.png"))
     return paths, even, rand
 
 
