@@ -11,6 +11,8 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[opencl,io,dask,dev,view]'
+	# the kernels the default trace and the demo scene need, compiled once (a progress bar)
+	$(VENV)/bin/flowkit compile default examples/hotroom_scene.toml
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -4,6 +4,7 @@ from . import compile_notice, numba_cache
 
 compile_notice.install()  # say so when a kernel compiles for seconds (a fresh machine)
 
+numba_cache.ensure_location()  # a read-only install without a home still gets a cache
 if numba_cache.IN_WORKING_TREE:  # edited sources: no stale compiled kernels (see numba_cache)
     numba_cache.drop_stale()
 

@@ -21,10 +21,10 @@ DELAY = 2.0
 TYPICAL = {
     "flowkit.integrate.kernel._advance_range": ("the tracing kernel", 33),
     "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 20),
-    "flowkit.integrate.pathlines._advance": ("the pathline kernel", 21),
-    "flowkit.integrate.rosenbrock._advance": ("the Rosenbrock kernel", 43),
-    "flowkit.fields.interp.sample_vectors": ("the attribute sampler", 8),
-    "flowkit.fields.interp.sample_scalars": ("the attribute sampler", 8),
+    "flowkit.integrate.pathlines._advance_range": ("the pathline kernel", 15),
+    "flowkit.integrate.rosenbrock._advance_range": ("the Rosenbrock kernel", 25),
+    "flowkit.fields.interp._sample_vectors_range": ("the attribute sampler", 4),
+    "flowkit.fields.interp._sample_scalars_range": ("the attribute sampler", 4),
 }
 
 

@@ -7,10 +7,18 @@ would still run the old loop.  ``drop_stale`` removes each numba package's cache
 older than a source file of that package or of a package others inline from.  flowkit's
 import calls it in a git working tree (a checkout installed in editable mode, where sources
 change under their caches); an installed flowkit never does, and is not touched.
+
+Where the cache lives: ``NUMBA_CACHE_DIR`` when set; else the package's own ``__pycache__``
+folders when writable; else the user's cache folder (``$XDG_CACHE_HOME/numba`` or
+``~/.cache/numba``).  When none is writable (a read-only install run by a user without a home,
+as in many containers) numba refuses to define a cached function at all; ``ensure_location``
+then points numba at a folder in the temporary directory, so flowkit imports and runs.
 """
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
@@ -33,3 +41,27 @@ def drop_stale(root: Path = PACKAGE) -> list[Path]:
                 p.unlink(missing_ok=True)
             dropped.append(cache)
     return dropped
+
+
+def _writable(folder: Path) -> bool:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+        return True
+    except OSError:
+        return False
+
+
+def ensure_location() -> str | None:
+    """Make sure numba has a writable cache folder (see above); returns the fallback folder
+    when one was needed, else None.  Call before any cached kernel is defined."""
+    from numba import config
+    from numba.misc.appdirs import AppDirs
+
+    if config.CACHE_DIR or _writable(PACKAGE / "integrate" / "__pycache__"):
+        return None
+    if _writable(Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)):
+        return None
+    uid = os.getuid() if hasattr(os, "getuid") else "user"
+    config.CACHE_DIR = str(Path(tempfile.gettempdir()) / f"flowkit-numba-{uid}")
+    return config.CACHE_DIR

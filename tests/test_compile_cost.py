@@ -50,3 +50,42 @@ def test_default_trace_compiles_one_specialization_of_each_function(tmp_path):
     # the compilation took seconds: the user was told, once
     assert any("compiling the tracing kernel for this CPU, once" in m for m in res["notices"])
     assert len(res["notices"]) == len(set(res["notices"]))
+
+
+OPTIONS_CODE = """
+import json
+import numpy as np
+import numba
+import flowkit
+from flowkit import datasets
+from flowkit.fields import interp
+from flowkit.fields.analytic import ABCFlow
+from flowkit.integrate import pathlines as P, rosenbrock as R, seeds
+f = datasets.hotroom()
+s = seeds.line((1, 1, 1), (9, 1, 9), 8)
+f.sample(s)
+f.sample_scalar("T", s)
+flowkit.trace(f, s, max_length=3, method="ros34pw2", direction="both")
+series = ABCFlow().to_series([0.0, 1.0], shape=12, bounds=[[0, 2 * np.pi]] * 3)
+P.pathlines(series, s[:, [0, 0, 2]] * 0.5, max_time=0.5, attributes=["speed"])
+print(json.dumps({m.__name__: {n: len(d.signatures) for n, d in vars(m).items()
+                               if isinstance(d, numba.core.registry.CPUDispatcher)
+                               and d.py_func.__module__ == m.__name__}
+                  for m in (interp, P, R)}))
+"""
+
+
+def test_attributes_pathlines_rosenbrock_compile_one_specialization_each(tmp_path):
+    """A literal argument or a prange index compiles a helper once more per value or type (each
+    seconds on a fresh machine): with an empty cache (a helper loaded inside its caller's cached
+    code is not counted), every compiled function of the samplers, the pathline and the
+    Rosenbrock integrators has one signature at most."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    out = subprocess.run([sys.executable, "-c", OPTIONS_CODE], env=env, capture_output=True,
+                         text=True, timeout=900, check=True).stdout
+    counts = json.loads(out.strip().splitlines()[-1])
+    many = {m: {n: c for n, c in d.items() if c > 1} for m, d in counts.items()}
+    assert not any(many.values()), f"compiled more than once: {many}"
+    assert counts["flowkit.integrate.pathlines"]["_velocity"] == 1
+    assert counts["flowkit.integrate.rosenbrock"]["_line"] == 1
+    assert counts["flowkit.fields.interp"]["_sample_vectors_range"] == 1

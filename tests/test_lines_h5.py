@@ -1,5 +1,5 @@
 """Lines <-> HDF5: round trips, the two readers (xarray/CF and VTK/VTKHDF), sharing, atomicity,
-errors. vtk (bench extra) and netCDF4 (no extra) are optional peers: their checks are skipped
+errors. vtk (interop extra: CI installs it) and netCDF4 (no extra) are peers: their checks are skipped
 (importorskip) where they are absent; xarray + h5netcdf (io extra) are required."""
 
 import os
@@ -235,8 +235,7 @@ def test_xarray_sees_cf_trajectories(tmp_path, engine):
         assert np.array_equal(ds.time.values[starts[i]:starts[i + 1]], lines.line_attribute("time", i))
 
 
-def test_vtk_hdf_reader_opens_polydata(tmp_path):
-    vtk = pytest.importorskip("vtk")  # optional peer (bench extra)
+def test_vtk_hdf_reader_opens_polydata(tmp_path, vtk):
     from vtk.util.numpy_support import vtk_to_numpy
 
     lines = make_lines(LENGTHS)

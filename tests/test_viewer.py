@@ -1,5 +1,5 @@
-"""The interactive viewer in a real glfw window on a virtual display (Xvfb, started here), with
-synthetic input: pixels of the scene checked on llvmpipe.
+"""The interactive viewer in a real glfw window on a virtual display (Xvfb, started by
+conftest.py's ``display``), with synthetic input: pixels of the scene checked on llvmpipe.
 
 One window serves the tests (a new GL context recompiles every program); each test starts from
 the base style file and the style's camera.  Xvfb missing: skipped on a developer's machine, a
@@ -9,8 +9,6 @@ failure in CI (CI set), where .ci/run installs it.
 from __future__ import annotations
 
 import os
-import shutil
-import subprocess
 import time
 import tomllib
 
@@ -44,39 +42,6 @@ color = "#ff0000"
 width = 2.0
 """
 RED, GREEN = (255, 0, 0), (0, 255, 0)
-
-
-@pytest.fixture(scope="session")
-def display():
-    """A private X display for the session (Xvfb picks a free number: -displayfd)."""
-    xvfb = shutil.which("Xvfb")
-    if xvfb is None:
-        why = "Xvfb is not installed (apt-get install xvfb): the viewer tests need a display"
-        if os.environ.get("CI"):
-            pytest.fail(why)
-        pytest.skip(why)
-    r, w = os.pipe()
-    proc = subprocess.Popen([xvfb, "-displayfd", str(w), "-screen", "0", "1280x1024x24",
-                             "-nolisten", "tcp"], pass_fds=(w,), stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
-    os.close(w)
-    with os.fdopen(r) as f:
-        number = f.readline().strip()
-    if not number:
-        proc.kill()
-        pytest.fail(f"Xvfb did not start: {proc.communicate()[1].decode(errors='replace')}")
-    old = os.environ.get("DISPLAY")
-    os.environ["DISPLAY"] = f":{number}"
-    yield os.environ["DISPLAY"]
-    import glfw
-
-    glfw.terminate()
-    proc.terminate()
-    proc.wait(10)
-    if old is None:
-        os.environ.pop("DISPLAY", None)
-    else:
-        os.environ["DISPLAY"] = old
 
 
 def write(path, text: str) -> None:

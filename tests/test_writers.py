@@ -105,8 +105,7 @@ def test_failed_write_leaves_the_old_file(tmp_path):
 
 @pytest.mark.parametrize("name", ["v.vti", "v.vtr"])
 @pytest.mark.parametrize("encoding", ["ascii", "binary", "appended"])
-def test_vtk_reads_what_flowkit_writes(tmp_path, name, encoding):
-    vtk = pytest.importorskip("vtk", reason="vtk is an optional peer (bench extra)")
+def test_vtk_reads_what_flowkit_writes(tmp_path, name, encoding, vtk):
     from vtk.util.numpy_support import vtk_to_numpy
 
     f = random_field()

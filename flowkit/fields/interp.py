@@ -2,7 +2,7 @@
 
 The scalar functions (``locate_axis``, ``locate``, ``trilinear_vector``, ``trilinear_scalar``) are
 meant to be called from other numba kernels; ``sample_vectors``/``sample_scalars`` are the
-vectorised entry points.  Grid arguments are ``Grid.kernel_args()``:
+vectorised entry points, called from Python.  Grid arguments are ``Grid.kernel_args()``:
 ``(x, y, z, period[3], inv_spacing[3])`` with ``inv_spacing`` all zero for rectilinear grids.
 
 Status codes of a sample: INSIDE, OUTSIDE (never extrapolated), NAN_CELL (a corner is NaN).
@@ -11,7 +11,9 @@ Status codes of a sample: INSIDE, OUTSIDE (never extrapolated), NAN_CELL (a corn
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
+
+from ..integrate.threads import run_ranges
 
 INSIDE = 0
 OUTSIDE = 1
@@ -114,10 +116,20 @@ def trilinear_scalar(arr, i, j, k, tx, ty, tz):
     return out, False
 
 
-@njit(cache=True, parallel=True)
-def sample_vectors(gx, gy, gz, period, inv, vec, pts, out, status):
-    for n in prange(pts.shape[0]):
-        i, j, k, tx, ty, tz, ok = locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1], pts[n, 2])
+# The vectorised samplers: a nogil loop over a range of points, run on ranges by Python threads
+# (integrate/threads.py, as the tracing kernel is) instead of a prange loop, whose parallel
+# gufunc cost seconds of compilation on every fresh machine.
+@njit(cache=True, no_cpython_wrapper=True)
+def _locate_point(gx, gy, gz, period, inv, px, py, pz):
+    """``locate``, compiled once for both samplers (inlined, it was compiled in each)."""
+    return locate(gx, gy, gz, period, inv, px, py, pz)
+
+
+@njit(cache=True, nogil=True)
+def _sample_vectors_range(start, stop, gx, gy, gz, period, inv, vec, pts, out, status):
+    for n in range(start, stop):
+        i, j, k, tx, ty, tz, ok = _locate_point(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1],
+                                                pts[n, 2])
         if not ok:
             out[n, 0] = np.nan
             out[n, 1] = np.nan
@@ -131,10 +143,11 @@ def sample_vectors(gx, gy, gz, period, inv, vec, pts, out, status):
         status[n] = NAN_CELL if bad else INSIDE
 
 
-@njit(cache=True, parallel=True)
-def sample_scalars(gx, gy, gz, period, inv, arr, pts, out, status):
-    for n in prange(pts.shape[0]):
-        i, j, k, tx, ty, tz, ok = locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1], pts[n, 2])
+@njit(cache=True, nogil=True)
+def _sample_scalars_range(start, stop, gx, gy, gz, period, inv, arr, pts, out, status):
+    for n in range(start, stop):
+        i, j, k, tx, ty, tz, ok = _locate_point(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1],
+                                                pts[n, 2])
         if not ok:
             out[n] = np.nan
             status[n] = OUTSIDE
@@ -142,3 +155,17 @@ def sample_scalars(gx, gy, gz, period, inv, arr, pts, out, status):
         val, bad = trilinear_scalar(arr, i, j, k, tx, ty, tz)
         out[n] = val
         status[n] = NAN_CELL if bad else INSIDE
+
+
+def sample_vectors(gx, gy, gz, period, inv, vec, pts, out, status):
+    """Trilinear vectors of ``vec`` (nx, ny, nz, 3) at ``pts`` (n, 3) into ``out`` (n, 3) and
+    ``status`` (n,) int8: INSIDE, OUTSIDE (NaN) or NAN_CELL (NaN)."""
+    run_ranges(_sample_vectors_range, pts.shape[0], gx, gy, gz, period, inv, vec, pts, out,
+               status)
+
+
+def sample_scalars(gx, gy, gz, period, inv, arr, pts, out, status):
+    """Trilinear values of ``arr`` (nx, ny, nz) at ``pts`` (n, 3) into ``out`` (n,) and
+    ``status``, as ``sample_vectors``."""
+    run_ranges(_sample_scalars_range, pts.shape[0], gx, gy, gz, period, inv, arr, pts, out,
+               status)

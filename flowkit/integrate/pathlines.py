@@ -32,7 +32,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..fields import Field
 from ..fields.interp import locate_axis, trilinear_vector
@@ -67,6 +67,7 @@ from .kernel import (
 )
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES, Reason
+from .threads import run_ranges
 
 # float state columns, the streamline kernel's first ones (kernel._load_state / _save_state):
 # position (3), time (its parameter), arc length (its dependent variable), step, previous error,
@@ -94,10 +95,10 @@ def _axis(c, period, inv, x):
     """Cell and local coordinate of x on one axis; beyond a bounded end the end cell's
     polynomial is extended (local coordinate outside [0, 1]) so stages just outside stay smooth."""
     n = c.size
-    if period > 0.0:
-        return locate_axis(c, period, inv, x)
-    xc = min(max(x, c[0]), c[n - 1])
-    i, t = locate_axis(c, 0.0, inv, xc)
+    # one inlined locate_axis, not one per branch (each copy costs compilation); period is
+    # 0.0 on a bounded axis
+    xc = x if period > 0.0 else min(max(x, c[0]), c[n - 1])
+    i, t = locate_axis(c, period, inv, xc)
     if xc != x:
         t = (x - c[i]) / (c[i + 1] - c[i])
     return i, t
@@ -162,16 +163,21 @@ def _root(Q, comp, q, y0, hs, target, sgn):
     return th
 
 
-@njit(cache=True)
-def _advance_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
-                  mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B):
-    k = np.empty((mi[0], 4))
+@njit(cache=True, nogil=True)
+def _advance_range(start, stop, active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
+                   t0, t1, mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n):
+    """``_advance`` for the slots start..stop-1 (lines ``active[start:stop]``), one after the
+    other; without the GIL, so that threads run ranges side by side (``threads.run_ranges``)."""
+    B = out_p.shape[1]
+    k = np.empty((mi[0], 4))  # scratch of one line, reused by the next
     Q = np.empty((4, mp.shape[1]))
     yt = np.empty(3)
     y = np.empty(4)  # position and arc length
     y1 = np.empty(4)
-    _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1, mc, ma,
-              mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt, y, y1)
+    for n in range(start, stop):
+        _run_line(active[n], n, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
+                  mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt,
+                  y, y1)
 
 
 # without NRT (no reference counting in the step loop), as kernel._run_line
@@ -195,7 +201,10 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
             if period[a] == 0.0 and not (c[0] <= seeds[l, a] <= c[c.size - 1]):
                 inside = False
         t = release[l]
-        if not (inside and _velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, 0)):
+        # constants to the compiled (not inlined) helpers typed: a literal 0 compiles one more
+        # copy of the helper per value (as in kernel.py)
+        if not (inside and _velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k,
+                                     np.int64(0))):
             si[l, I_STATUS] = DONE
             si[l, I_REASON] = R_SEED
             return
@@ -212,7 +221,7 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
             for a in range(3):
                 yt[a] = y[a] + d * h0 * k[0, a]
             ok = _velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv,
-                           v0, v1, t0, t1, k, 1)
+                           v0, v1, t0, t1, k, np.int64(1))
             h = _initial_step(fo, y, k, h0, d1, kexp, ok)
         h = d * min(h, hmax)
         si[l, I_STATUS] = RUNNING
@@ -332,7 +341,7 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
                 ev_face = face
         ev_len = False
         if y1[3] >= maxlen:
-            thl = _root(Q, 3, q, y[3], hs, maxlen, 1.0)
+            thl = _root(Q, np.int64(3), q, y[3], hs, maxlen, 1.0)
             if thl < th or ev_axis < 0:
                 th = thl
                 ev_len = True
@@ -374,18 +383,14 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
         si[l, I_REASON] = reason
 
 
-@njit(cache=True, parallel=True)
 def _advance(active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
              mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n):
     """Advance the lines ``active`` to ``goal`` (or their end) inside one snapshot interval, or
-    until each has written B vertices."""
-    B = out_p.shape[1]
-    for n in prange(active.size):
-        # the slot as int64: prange's index is int64 where numba types the loop and uint64 in
-        # the body it lowers, which compiled _advance_line (and its step loop) twice
-        _advance_line(active[n], np.int64(n), seeds, release, d, goal, gx, gy, gz, period, inv,
-                      v0, v1, t0, t1, mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s,
-                      out_n, B)
+    until each has written B vertices; the lines go to numba's thread count of Python threads
+    (``threads.run_ranges``): a prange loop around the kernel cost seconds more to compile."""
+    run_ranges(_advance_range, active.size, active, seeds, release, d, goal, gx, gy, gz, period,
+               inv, v0, v1, t0, t1, mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s,
+               out_n)
 
 
 # -- the driver -------------------------------------------------------------------------------

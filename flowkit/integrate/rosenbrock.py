@@ -14,7 +14,7 @@ component, linearised with its exact gradient (the 4x4 W is block triangular, so
 3x3 inverse per step).  Dense output: cubic Hermite of (y0, f0, y1, f1), order 3 like the method.
 
 The driver reuses the numba kernel's pieces (cell location ``_relocate``, face crossing
-``_move``, right-hand side ``_f``, dense evaluation and event roots ``_dense``/``_root``, vertex
+``_move``, right-hand side ``_fc``, dense evaluation and event roots ``_dense``/``_root``, vertex
 output ``_put``) and its option arrays (``trace._Setup``); it is always cell-aware, and its
 termination follows the kernel's rules and reason codes.  Its step loop mirrors the kernel's,
 because the kernel's loop has no hook for another step formula (see docs/precision.md,
@@ -30,14 +30,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ..fields import Field
 from ..lines import Lines
 from . import kernel as K
-from .kernel import _dense, _f, _move, _norm3, _put, _relocate, _root
+from .kernel import _dense, _fc, _move, _norm3, _put, _relocate, _root
 from .options import TraceOptions
 from .stiffness import HLAMBDA_STIFF, cell_jacobian, spectral_radius_bound, stiff_update
+from .threads import run_ranges
 
 NAME = "ros34pw2"
 GAMMA = 4.3586652150845900e-01
@@ -107,6 +108,21 @@ def _inv3(M, Mi):
     return True
 
 
+# The kernel's cell-aware right-hand side and face crossing, compiled once and called: inlined
+# (as the kernel's loop has them) at each of _line's call sites, they were typed and lowered
+# once per site, seconds of compilation on a fresh machine.
+@njit(cache=True, no_cpython_wrapper=True)
+def _rhs(px, py, pz, param, cf, coef, k, row):
+    """``kernel._f`` of a cell-aware line: the current cell's polynomial into k[row]; |v|."""
+    return _fc(px, py, pz, param, cf, coef, k, row)
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def _cross(a, up, c, per, vec, ci, cf, coef):
+    """``kernel._move``: through the current cell's face on axis a (0 ok, 1 out, 2 NaN)."""
+    return _move(a, up, c, per, vec, ci, cf, coef)
+
+
 @njit(cache=True)
 def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
           si, out_p, out_par, out_n):
@@ -148,7 +164,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
     sp = np.nan
     if inside:
         _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
-        sp = _f(px, py, pz, param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+        sp = _rhs(px, py, pz, param, cf, coef, k, np.int64(0))
     si[l, 0] = K.DONE
     if not (inside and math.isfinite(sp)):
         si[l, 1] = K.R_SEED
@@ -186,12 +202,12 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
             up = y[a] >= cf[3 + a] and mv > 0.0
             if up or (y[a] <= cf[a] and mv < 0.0):
                 y[a] = cf[3 + a] if up else cf[a]
-                res = _move(a, up, c, period[a], vec, ci, cf, coef)
+                res = _cross(a, up, c, period[a], vec, ci, cf, coef)
                 if res != 0:
                     reason = K.R_OUT if res == 1 else K.R_NAN
                     stop = True
                     break
-                _f(y[0], y[1], y[2], param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+                _rhs(y[0], y[1], y[2], param, cf, coef, k, np.int64(0))
             else:
                 y[a] = min(max(y[a], cf[a]), cf[3 + a])
         if stop:
@@ -228,7 +244,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
                     for m in range(st):
                         acc += alpha[st, m] * kk[m, a]
                     yt[a] = y[a] + acc
-                _f(yt[0], yt[1], yt[2], param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+                _rhs(yt[0], yt[1], yt[2], param, cf, coef, k, st)
             for a in range(4):  # h f(Y_i) + h J Σ γ_ij k_j (J extended by g as its 4th row)
                 acc = 0.0
                 for m in range(st):
@@ -258,7 +274,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
             err = math.sqrt(err / 3.0)
             finite = math.isfinite(err)
         if finite:  # f(y1): the next step's f0 and the Hermite end slope
-            _f(y1[0], y1[1], y1[2], param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 4)
+            _rhs(y1[0], y1[1], y1[2], param, cf, coef, k, np.int64(4))
             finite = math.isfinite(k[4, 0] + k[4, 1] + k[4, 2] + k[4, 3])
         if not finite:
             n_rej += 1
@@ -341,13 +357,15 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
             if ev == K.EV_FACE:
                 y[ev_axis] = ev_face
                 c = gx if ev_axis == 0 else (gy if ev_axis == 1 else gz)
-                res = _move(ev_axis, ev_face == cf[3 + ev_axis], c, period[ev_axis], vec, ci, cf, coef)
+                # typed: numba's SSA form gives ev_axis its literal -1 on one path
+                res = _cross(np.int64(ev_axis), ev_face == cf[3 + ev_axis], c, period[ev_axis],
+                             vec, ci, cf, coef)
                 if res == 1:
                     reason = K.R_OUT
                 elif res == 2:
                     reason = K.R_NAN
                 else:
-                    _f(y[0], y[1], y[2], param, True, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
+                    _rhs(y[0], y[1], y[2], param, cf, coef, k, np.int64(0))
             else:
                 reason = r_dep
         if hit_lim:
@@ -369,12 +387,23 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
     si[l, 5] = n_stiff
 
 
-@njit(cache=True, parallel=True)
-def _advance(seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
-             si, out_p, out_par, out_n):
-    for l in prange(seeds.shape[0]):
+@njit(cache=True, nogil=True)
+def _advance_range(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat,
+                   fo, io, si, out_p, out_par, out_n):
+    """Lines start..stop-1, one after the other; without the GIL, so that threads run ranges
+    side by side (``threads.run_ranges``)."""
+    for l in range(start, stop):
         _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
               si, out_p, out_par, out_n)
+
+
+def _advance(seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
+             si, out_p, out_par, out_n):
+    """Every line, on numba's thread count of Python threads: a prange loop around ``_line``
+    compiled it twice (its index is int64 where numba types the loop, uint64 where it lowers
+    it) and built a parallel gufunc, seconds of compilation on every fresh machine."""
+    run_ranges(_advance_range, seeds.shape[0], seeds, dirs, gx, gy, gz, period, inv, vec, alpha,
+               gam, b, bhat, fo, io, si, out_p, out_par, out_n)
 
 
 def run_tasks(setup, seeds, dirs, max_steps):

@@ -1,0 +1,164 @@
+"""Compile flowkit's kernels ahead of use, so that an image or a cluster is warmed once.
+
+A kernel's machine code depends on the types of its arguments, never on the data: every Field
+holds float64 C-contiguous arrays, so a short trace on a small stand-in field compiles the very
+specializations that the same options compile on a user's data, and numba's disk cache keeps
+them for every later process (where that cache lives: docs/integrator.md, "Cold start").  The
+stand-in grid is uniform, so options that run the lock-step on a uniform grid compile it too.
+
+``WHAT`` names: a set of options from ``OPTION_SETS`` ("default" is what ``flowkit trace`` and
+``flowkit.trace`` run with no option named; "all" is every set), or a scene file, whose trace
+options (with the attributes its styles read) are compiled.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numba.core import event
+
+# name -> (what it is, TraceOptions fields; "pathlines" runs the pathline integrator)
+OPTION_SETS = {
+    "default": ("the default trace", {}),
+    "attributes": ("attributes speed, T, vorticity", {"attributes": ("speed", "T", "vorticity")}),
+    "rk4": ("rk4", {"method": "rk4"}),
+    "dop853": ("dop853", {"method": "dop853"}),
+    "no-cell-aware": ("--no-cell-aware", {"cell_aware": False}),
+    "lockstep": ("fixed-step plain rk4 (the lock-step)",
+                 {"method": "rk4", "step": 0.05, "cell_aware": False}),
+    "rosenbrock": ("the Rosenbrock method", {"method": "ros34pw2"}),
+    "pathlines": ("pathlines", {}),
+}
+
+
+@dataclass
+class Compiled:
+    what: str             # the option set or scene
+    seconds: float        # wall time of the warm-up trace, compilation included
+    compiled: int         # functions numba compiled (0: everything came from the cache)
+    compile_seconds: float
+
+
+def stand_in(scalars=("T",), t: float = 0.0):
+    """A small uniform field (9 x 7 x 9 nodes, a swirl with a drift) with the scalar fields
+    ``scalars`` (each the x coordinate), at time ``t``."""
+    from .fields import Field, Grid
+
+    g = Grid.regular((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (9, 7, 9))
+    x, y, z = np.meshgrid(g.x, g.y, g.z, indexing="ij")
+    vec = np.stack([-(z - 4.0), 0.1 + 0.0 * y + 0.01 * t, x - 4.0], axis=-1)
+    return Field(g, vec, {s: x.copy() for s in scalars}, source="<stand-in>", time=t)
+
+
+SEEDS = np.array([[3.0, 1.0, 4.0], [5.0, 2.0, 4.0], [4.0, 3.0, 2.5], [2.0, 1.5, 5.5]])
+
+
+def jobs(what) -> list[tuple[str, callable]]:
+    """(label, run) for each name or scene file in ``what``; errors name the unknown one."""
+    out = []
+    for w in what:
+        if w == "all":
+            out += jobs(list(OPTION_SETS))
+        elif w in OPTION_SETS:
+            out.append((w, _option_set(w)))
+        elif str(w).endswith(".toml") or Path(w).is_file():
+            out.append((str(w), _scene(w)))
+        else:
+            have = ", ".join(list(OPTION_SETS) + ["all"])
+            raise ValueError(f"flowkit compile: '{w}' is neither an option set ({have}) nor a "
+                             f"scene file")
+    return out
+
+
+def _option_set(name: str):
+    from .integrate.options import TraceOptions
+
+    opts = TraceOptions(max_length=4.0, **OPTION_SETS[name][1])
+    if name == "pathlines":
+        return lambda: _pathlines(opts)
+    return lambda: _trace(opts)
+
+
+def _scene(path):
+    from .scene.model import load_scene
+    from .scene.plan import make_plan
+
+    plan = make_plan(load_scene(path))  # validates the file now, before anything compiles
+    return lambda: _trace(plan.options)
+
+
+def _trace(opts):
+    from .integrate.attributes import ATTRIBUTES
+    from .integrate.trace import trace
+
+    scalars = [a for a in opts.attributes if a not in ATTRIBUTES]
+    trace(stand_in(scalars or ("T",)), SEEDS, opts.replace(max_length=min(opts.max_length, 4.0)))
+
+
+def _pathlines(opts):
+    from .integrate.pathlines import pathlines
+
+    pathlines([(0.0, stand_in(t=0.0)), (1.0, stand_in(t=1.0))], SEEDS,
+              opts.replace(max_time=1.0))
+
+
+class _Timer(event.Listener):
+    """Counts the outermost numba compilations and their seconds."""
+
+    def __init__(self):
+        self.depth = self.count = 0
+        self.seconds = 0.0
+        self.t0 = 0.0
+
+    def on_start(self, ev):
+        self.depth += 1
+        if self.depth == 1:
+            self.t0 = time.perf_counter()
+
+    def on_end(self, ev):
+        self.depth -= 1
+        self.count += 1
+        if self.depth == 0:
+            self.seconds += time.perf_counter() - self.t0
+
+
+def compile_one(label: str, run) -> Compiled:
+    """Run one warm-up job, counting what numba compiled for it."""
+    timer = _Timer()
+    t = time.perf_counter()
+    with event.install_listener("numba:compile", timer):
+        run()
+    return Compiled(label, time.perf_counter() - t, timer.count, timer.seconds)
+
+
+def warm(what=("default",)) -> list[Compiled]:
+    """Compile what ``what`` needs (see ``jobs``) in this process; what each job compiled."""
+    return [compile_one(label, run) for label, run in jobs(what)]
+
+
+_recorder: _Timer | None = None
+
+
+def record() -> None:
+    """From now on, count what numba compiles in this process (idempotent); ``recorded``
+    reads it.  On a cluster: ``client.run(record)`` before a job, ``client.run(recorded)``
+    after it says what each worker compiled instead of loading from the cache."""
+    global _recorder
+    if _recorder is None:
+        _recorder = _Timer()
+        event.register("numba:compile", _recorder)
+
+
+def recorded() -> tuple[int, float]:
+    """(functions compiled, seconds) since ``record`` was first called."""
+    return (_recorder.count, _recorder.seconds) if _recorder is not None else (0, 0.0)
+
+
+def cache_location() -> str:
+    """Where numba caches flowkit's kernels in this process (docs/integrator.md says why)."""
+    from .integrate import kernel
+
+    return kernel._advance_range._cache._cache_path

@@ -1,0 +1,44 @@
+"""``flowkit compile`` warms the cache: a fresh process with an empty cache compiles the kernels
+the default options need, and a second process then finds every one of them cached."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from flowkit import warmup
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _compile(cache: Path, *what: str) -> str:
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "flowkit", "compile", *what], env=env,
+                          capture_output=True, text=True, timeout=900, check=True).stdout
+
+
+def test_compile_then_a_second_process_finds_everything_cached(tmp_path):
+    cache = tmp_path / "numba"
+    first = _compile(cache)
+    m = re.search(r"^default: compiled (\d+) functions in ([\d.]+) s", first, re.MULTILINE)
+    assert m and int(m[1]) >= 5 and float(m[2]) > 1.0, first
+    assert f"cache: {cache}" in first
+    assert list(cache.rglob("kernel._advance_range-*.nbi"))  # the tracing kernel is stored
+    second = _compile(cache)
+    assert re.search(r"^default: all from the cache \(", second, re.MULTILINE), second
+    assert "compiled 0 functions in 0.0 s" in second
+
+
+def test_what_to_compile_is_checked_before_anything_compiles(tmp_path):
+    with pytest.raises(ValueError, match="'bogus' is neither an option set .*default.*all"):
+        warmup.jobs(["default", "bogus"])
+    bad = tmp_path / "scene.toml"
+    bad.write_text("version = 1\n[trace]\nmethodd = 'rk4'\n")
+    with pytest.raises(ValueError, match="scene.toml"):
+        warmup.jobs([str(bad)])
+    assert [label for label, _ in warmup.jobs(["all"])] == list(warmup.OPTION_SETS)
