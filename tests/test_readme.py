@@ -56,8 +56,8 @@ def test_readme_python_example_runs(tmp_path, monkeypatch):
 
 def test_readme_flowkit_lines_run(tmp_path, monkeypatch, capsys, display):
     cmds = readme_commands()
-    assert [c[0] for c in cmds] == ["info", "trace", "info", "render", "render", "scene", "view",
-                                    "trace", "bench", "compile"], cmds
+    assert [c[0] for c in cmds] == ["info", "trace", "trace", "trace", "info", "render", "render",
+                                    "render", "scene", "view", "trace", "bench", "compile"], cmds
     (tmp_path / "run.vtu").symlink_to((SHARED / "hotroom_t2000.vtu").resolve())
     for t in ("0400", "2000"):
         (tmp_path / f"run_{t}.vtu").symlink_to((SHARED / f"hotroom_t{t}.vtu").resolve())
@@ -90,7 +90,10 @@ def test_readme_flowkit_lines_run(tmp_path, monkeypatch, capsys, display):
     assert "grid: uniform, shape (41, 21, 41)" in outputs["info"][0]
     info = outputs["info"][1]
     assert "lines: 512 " in info and re.search(r"^ +T +float64", info, re.MULTILINE)
-    assert Image.open("halo.png").size == (1920, 1080)
+    assert Image.open("halo.png").size == (1920, 1080) and Image.open("overview.png").size
+    reasons = __import__("flowkit").read_lines("even.h5").line_data["reason"]
+    assert (reasons == __import__("flowkit").integrate.reasons.Reason.TOO_CLOSE).any()
+    assert len(__import__("flowkit").read_lines("hot.h5")) == 500
     gif = Image.open("arrows.gif")
     assert gif.n_frames == 24 and gif.size == (320, 180)
     assert "attributes traced: speed, T" in outputs["scene"][0]
