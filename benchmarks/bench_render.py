@@ -137,7 +137,7 @@ def time_vtk(lines: Lines, size, frames: int):
         setup = c.setup(bounds, *size)
         vcam.SetPosition(*setup.eye)
         vcam.SetFocalPoint(*bounds.mean(axis=1))
-        vcam.SetViewUp(*c.up)
+        vcam.SetViewUp(*c.choose_up(bounds, *size))  # (flowkit picks an up when none is set)
         vcam.SetViewAngle(c.fov)
         ren.ResetCameraClippingRange()
         rw.Render()
