@@ -1,6 +1,6 @@
-"""Frame time of the full issue-6 style (transfer function choosing between two styles, arrow
-and dash shapes, a directional colour pattern over a colormap, depth-dependent halo) next to
-the plain two-band halo style, same lines, same run.
+"""Frame time of the full transfer-function style (a transfer function choosing between two
+styles, arrow and dash shapes, a directional colour pattern over a colormap, depth-dependent
+halo) next to the plain two-band halo style, same lines, same run.
 
 The scene is bench_render's (2500 lines x 1000 vertices = 2.5M vertices at 1920x1080) plus the
 attributes the full style reads: arc_length and a pseudo integration time (arc length / speed

@@ -5,7 +5,8 @@ corner loads of different lines overlap) next to flowkit's rk4 on the ABC benchm
 The probe does only what an interior step needs (no cell cache, no boundary or NaN handling, a
 fixed number of steps, no vertex output), so its times are a bound for a lock-step kernel, not a
 kernel; its end points are compared with flowkit's to show it does the same arithmetic.
-docs/integrator.md ("Run 6") has its figures; flowkit's lock-step has been vector code since run 9.
+Its figures are in benchmarks/results/integrator_run_history.md ("lines in lock-step for
+fixed-step methods"); flowkit's own lock-step (lanes.py) is now vector code too.
 
     .venv/bin/python benchmarks/lockstep_probe.py [--nodes-per-period 128] [--step 0.1]
 """

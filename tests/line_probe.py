@@ -1,4 +1,5 @@
-"""A straight line seen face-on, and pixel probes along it (shared by the issue-6 tests)."""
+"""A straight line seen face-on, and pixel probes along it (shared by the shape, pattern and
+transfer tests)."""
 
 from __future__ import annotations
 

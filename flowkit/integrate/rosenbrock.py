@@ -18,7 +18,7 @@ The driver reuses the numba kernel's pieces (cell location ``_relocate``, face c
 output ``_put``) and its option arrays (``trace._Setup``); it is always cell-aware, and its
 termination follows the kernel's rules and reason codes.  Its step loop mirrors the kernel's,
 because the kernel's loop has no hook for another step formula (see docs/precision.md,
-"Hooking into the kernel", for the refactor that would let both share one loop).
+"Sharing one loop", for the refactor that would let both share one loop).
 
 Per line it also records the stiffness it met: ``stiff_steps`` (accepted steps with
 h ρ(J) > 3.25, steps an explicit DP5 step of that size would be unstable for; ρ bounded by the

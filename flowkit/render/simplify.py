@@ -144,8 +144,8 @@ def lod_importance(points, arc, starts, stops, placed=(), mapped=()) -> np.ndarr
     patterns) and that of each attribute in ``mapped`` ((values, slopes, value tolerance):
     colour, width, transfer; see ``mapped_importance``).  So the points DP keeps at a tolerance
     bound every one of these errors by it, and a point that the geometry keeps anyway serves
-    the attributes too: on the issue-6 benchmark scene a union of one hierarchy per criterion
-    drew 522k points where this draws 362k (geometry alone: 361k)."""
+    the attributes too: on the benchmark scene of bench_styles.py a union of one hierarchy per
+    criterion drew 522k points where this draws 362k (geometry alone: 361k)."""
     p = np.ascontiguousarray(points, np.float64)
     crit = [(v, m, DISPLACEMENT, 0.0) for v, m in placed] + [(v, m, MAPPED, t) for v, m, t in mapped]
     n = p.shape[0]
