@@ -294,6 +294,9 @@ def _fc(px, py, pz, param, cf, coef, k, row):
     return sp
 
 
+_fc_call = helper(_fc.py_func)  # the same, called: off the per-step path (crossing tries)
+
+
 @njit(cache=True, inline="always")
 def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row):
     """Right-hand side at p: cell-aware, the current cell's polynomial; otherwise the polynomial
@@ -848,7 +851,7 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
                 # times the time past the first face, bounds what the faces' kinks moved y1
                 # (the embedded estimate, blind to kinks, sees a fraction of it)
                 t_past = abs(hs) - t_exit
-                _fc(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
+                _fc_call(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
                 ek = 0.0
                 for a in range(3):
                     sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
@@ -983,8 +986,9 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
                 hk = abs(hs) * (facmax if err == 0.0 else min(facmax, safety / math.sqrt(err)))
                 if not (cf[0] <= y[0] <= cf[3] and cf[1] <= y[1] <= cf[4]
                         and cf[2] <= y[2] <= cf[5]):
+                    # (k0 = f(y1) came from the cell holding y1 already, or from its neighbour
+                    # on a shared face: the same value)
                     _relocate(gx, gy, gz, period, inv, vec, y[0], y[1], y[2], ci, cf, coef)
-                    _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
         else:
             ynew0 = _dense(qd, C0, q, y[0], hs, th)
             ynew1 = _dense(qd, C1, q, y[1], hs, th)
