@@ -20,10 +20,9 @@ from render_scenes import project
 
 from flowkit.lines import Lines
 from flowkit.render.style import load_style
+from flowkit.view import orbit
 
 SIZE = (640, 360)
-# fit = "sphere": the framing stays the same size while the drag orbits (the default, fitting
-# the projected bounds, refits the view for every direction until the orbit pins it)
 BASE = """\
 version = 1
 background = "#000000"
@@ -33,7 +32,6 @@ antialias = "none"
 azimuth = -90
 elevation = 0
 projection = "orthographic"
-fit = "sphere"
 
 [[bands]]
 color = { cmap = "gray", attribute = "speed", range = [0.0, 1.0] }
@@ -223,10 +221,10 @@ def test_zoom_pan_and_reset(fresh):
         return cols.min(), cols.max()
 
     lo, hi = extent()
-    fresh.on_scroll(2)  # orthographic: magnify 1 / 0.9**2
+    fresh.on_scroll(-2)  # orthographic: reduce to 0.9**2 (the fitted line spans 90 %)
     fresh.step()
     lo2, hi2 = extent()
-    assert (hi2 - lo2) / (hi - lo) == pytest.approx(1 / 0.81, rel=0.03)
+    assert (hi2 - lo2) / (hi - lo) == pytest.approx(0.81, rel=0.03)
     fresh.on_drag(40, 0, button=1)  # right drag pans: the scene follows the mouse
     fresh.step()
     lo3, hi3 = extent()
@@ -234,6 +232,27 @@ def test_zoom_pan_and_reset(fresh):
     fresh.on_key(__import__("glfw").KEY_R)
     fresh.step()
     assert extent() == (lo, hi)
+
+
+def test_named_view_keys_fit_once_then_orbit_at_that_scale(fresh):
+    import glfw
+
+    def width():
+        cols = np.flatnonzero(lit(scene(fresh)).any(axis=0))
+        return cols.max() + 1 - cols.min()
+
+    face_on = width()
+    fresh.on_key(glfw.KEY_1)  # +x: the line end on (framed by its sphere), hardly a dot
+    fresh.step()
+    assert fresh.camera.view is None and lit(scene(fresh)).sum() < 100
+    per_px = fresh.camera.setup(fresh.renderer.bounds, *SIZE).px_scale[1]
+    fresh.on_drag(90 / 0.4, 0)  # a quarter turn: face on again, at the scale of that fit
+    fresh.step()
+    assert fresh.camera.setup(fresh.renderer.bounds, *SIZE).px_scale[1] == per_px
+    assert width() == pytest.approx(2.0 / per_px, abs=6) and width() < 0.8 * face_on
+    fresh.on_key(glfw.KEY_R)  # the style's camera, fitted again
+    fresh.step()
+    assert width() == face_on
 
 
 def test_real_callbacks_drive_the_camera(fresh):
@@ -249,7 +268,7 @@ def test_real_callbacks_drive_the_camera(fresh):
     assert fresh.camera.azimuth == pytest.approx(-90 - 0.4 * 25)
     assert fresh.camera.elevation == pytest.approx(-0.4 * 10)
     fresh._key_cb(fresh.window, glfw.KEY_R, 0, glfw.PRESS, 0)
-    assert fresh.camera == fresh.style.camera
+    assert fresh.camera == orbit.pinned(fresh.style.camera, fresh.renderer.bounds, SIZE)
     fresh._key_cb(fresh.window, glfw.KEY_ESCAPE, 0, glfw.PRESS, 0)
     assert fresh.should_close
 

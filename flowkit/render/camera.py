@@ -27,10 +27,12 @@ class Camera:
     along the image's long side.  ``distance`` (perspective) or the view height (orthographic)
     None: fitted.  ``fit = "bounds"`` (default) fits the bounds' corners as projected on the
     image, to FILL of its limiting side, so a thin or tall domain fills the frame; ``"sphere"``
-    fits their bounding sphere, the same size from every direction.  With an explicit ``target``
-    the fit about the bounds' centre grows as the bounding sphere about the target does.  ``zoom`` > 1
-    magnifies.  ``fov`` is
-    the vertical field of view (perspective)."""
+    fits their bounding sphere, the same size from every direction (also the fit of a domain
+    seen as a point, e.g. a straight line end on).  With an explicit ``target``
+    the fit about the bounds' centre grows as the bounding sphere about the target does.
+    ``parallel_scale`` (orthographic): half the view's height in world units, as ParaView's
+    parallel scale; None: fitted.  ``zoom`` > 1 magnifies (a fitted distance, or the view
+    height).  ``fov`` is the vertical field of view (perspective)."""
 
     azimuth: float = -60.0
     elevation: float = 25.0
@@ -42,8 +44,13 @@ class Camera:
     zoom: float = 1.0
     view: str | None = None
     fit: str = "bounds"
+    parallel_scale: float | None = None
 
     def __post_init__(self):
+        if self.parallel_scale is not None and not (math.isfinite(self.parallel_scale)
+                                                    and self.parallel_scale > 0):
+            raise ValueError(f"camera parallel_scale = {self.parallel_scale!r} must be a "
+                             "positive number")
         if self.fit not in FITS:
             raise ValueError(f"camera fit = {self.fit!r} is not allowed; expected one of "
                              f"{', '.join(FITS)}")
@@ -117,7 +124,8 @@ class Camera:
         s, u = _screen_axes(d, up)
         rel = corners - mid
         x, y, z = rel @ s, rel @ u, rel @ d  # corners on the image's axes and towards the eye
-        sphere = self.fit == "sphere"
+        # a domain seen as a point (a straight line end on) has no projected extent to fit
+        sphere = self.fit == "sphere" or max(np.ptp(x), np.ptp(y)) < 1e-3 * radius
         persp = self.projection == "perspective"
         if self.distance is not None:
             dist = self.distance
@@ -136,7 +144,9 @@ class Camera:
             # world units per pixel at view depth z (< 0): px_a * (-z) + px_b
             px_a, px_b = 2 * math.tan(half_fov) / height, 0.0
         else:
-            if sphere:
+            if self.parallel_scale is not None:
+                half_h = self.parallel_scale / self.zoom
+            elif sphere:
                 half_h = radius / self.zoom / min(1.0, aspect)
             else:
                 half = max(float(np.max(np.abs(x))) / aspect, float(np.max(np.abs(y))), 1e-9)

@@ -16,6 +16,7 @@ other flags select (and, the first time, compile) another program.  ``updates`` 
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 import tomllib
@@ -29,6 +30,7 @@ import glfw  # isort: skip
 import moderngl  # isort: skip
 
 from ..lines import Lines
+from ..render.camera import VIEWS, Camera
 from ..render.context import create_context
 from ..render.legend import drawn_pixels, legend_image, legend_key
 from ..render.renderer import LineRenderer, save_png
@@ -146,7 +148,7 @@ class Viewer:
         self.style = self.file_style = style  # in effect / last good from the file
         self.source = text  # the file's text: save_style keeps its comments and layout
         self.flags = self._flags(style)
-        self.camera = style.camera
+        self._camera, self._fit = style.camera, style.camera  # fitted at the first frame
         self.updates = {"uniforms": 0, "recompile": 0}
         self.last_update: str | None = None
         self.error: str | None = None  # shown in the panel until a good style replaces it
@@ -220,7 +222,7 @@ class Viewer:
         self.error = None
         kind = "uniforms" if flags == self.flags else "recompile"
         if style.camera != self.style.camera:  # the file moved the camera: follow it
-            self.camera = style.camera
+            self.fit_camera(style.camera)
         if style.legend.show != self.style.legend.show:  # and its legend switch
             self.show_legend = style.legend.show
         self.style, self.flags = style, flags
@@ -353,8 +355,35 @@ class Viewer:
         return self.apply(style, key="colour range", merge=merge)
 
     # -- camera and keys --------------------------------------------------------------------------
+    @property
+    def camera(self) -> Camera:
+        """The camera drawn with: pinned (``orbit.pinned``), fitted once to the scene's
+        viewport by ``fit_camera``, so orbiting keeps the scale."""
+        if self._fit is not None:  # fitted when first needed: at the viewport's size then
+            self._camera = orbit.pinned(self._fit, self.renderer.bounds, self.scene_size)
+            self._fit = None
+        return self._camera
+
+    @camera.setter
+    def camera(self, cam: Camera) -> None:
+        self._camera, self._fit = cam, None
+
+    def fit_camera(self, cam: Camera) -> None:
+        """Show the lines through ``cam``, its fitted parts (distance, view height, up, ...)
+        fitted at the next frame's viewport and then kept."""
+        self._fit = cam
+        self.wake()
+
     def reset_camera(self) -> None:
-        self.camera = self.style.camera
+        """The style's camera, fitted again (R)."""
+        self.fit_camera(self.style.camera)
+
+    def set_view(self, view: str) -> None:
+        """Look along a named view ("+x", ..., "iso"; ``render.camera.VIEWS``) with the style's
+        projection, fitted to the lines as ParaView's view buttons do."""
+        self.fit_camera(dataclasses.replace(self.style.camera, view=view, distance=None,
+                                            target=None, parallel_scale=None))
+        self.message = f"view {view}"
 
     def on_drag(self, dx: float, dy: float, button: int = 0, mods: int = 0) -> None:
         """Left drag orbits; right or middle drag (or shift + left) pans.  Pixels, y down."""
@@ -376,7 +405,8 @@ class Viewer:
 
     # glfw key -> (its name, what it does); Ctrl+Z, Ctrl+Shift+Z, Ctrl+S besides
     KEYS: ClassVar = {
-        glfw.KEY_R: ("R", "reset camera"), glfw.KEY_S: ("S", "screenshot"),
+        glfw.KEY_R: ("R", "reset camera"), glfw.KEY_1: ("1-7", "views " + " ".join(VIEWS)),
+        glfw.KEY_S: ("S", "screenshot"),
         glfw.KEY_C: ("C", "next colour attribute"), glfw.KEY_A: ("A", "orientation axes"),
         glfw.KEY_B: ("B", "outline"), glfw.KEY_L: ("L", "legend"),
         glfw.KEY_P: ("P", "probe on hover"),
@@ -421,6 +451,8 @@ class Viewer:
             self.message = f"saved {self.screenshot()}"
         elif key == glfw.KEY_C:
             self.cycle_color_attribute()
+        elif glfw.KEY_1 <= key < glfw.KEY_1 + len(VIEWS):
+            self.set_view(VIEWS[key - glfw.KEY_1])
         elif key in self._TOGGLE_KEYS:
             self.toggle(self._TOGGLE_KEYS[key])
 

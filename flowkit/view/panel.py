@@ -18,6 +18,7 @@ import glfw
 import numpy as np
 from imgui_bundle import imgui
 
+from ..render.camera import VIEWS
 from ..render.shapes import SHAPE_NAMES
 from ..render.style import ColorMap, known_colormap
 from .edit import auto_range, get_at, params
@@ -150,6 +151,11 @@ class Panel:
         v = self.viewer
         if not imgui.collapsing_header("view", imgui.TreeNodeFlags_.default_open):
             return
+        for i, name in enumerate(VIEWS):  # ParaView's view buttons (keys 1-7)
+            if i:
+                imgui.same_line()
+            if imgui.small_button(name):
+                v.set_view(name)
         for label, what in (("orientation axes (A)", "axes"), ("outline (B)", "outline"),
                             ("legend (L)", "legend"), ("probe on hover (P)", "probe")):
             if imgui.checkbox(label, v.shown(what))[0]:
