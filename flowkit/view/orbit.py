@@ -34,8 +34,7 @@ def pinned(cam: Camera, bounds: np.ndarray, size: tuple[int, int]) -> Camera:
     w, h = size
     s = cam.setup(bounds, w, h)
     up = cam.choose_up(bounds, w, h)
-    centre = (np.asarray(bounds, float).mean(axis=1) if cam.target is None
-              else np.asarray(cam.target, float))
+    centre = s.target  # a fitted perspective view looks at its projection's centre
     dist = float(np.linalg.norm(s.eye - centre))
     e1, e2, u = cam.frame(up)
     d = (s.eye - centre) / dist
