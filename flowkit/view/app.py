@@ -9,6 +9,8 @@ The event handlers (``on_drag``, ``on_scroll``, ``on_key``) are what the glfw ca
 what tests call.
 
 The scene's viewport is the window right of the panel (the whole window with the panel hidden).
+The camera is fitted to it once (on open, R, a named view, a new camera in the style file) and
+pinned (``orbit.pinned``), so orbiting, zooming and panning keep the scale.
 
 Style updates: a new style whose template flags equal the current ones only changes uniforms;
 other flags select (and, the first time, compile) another program.  ``updates`` counts both.
