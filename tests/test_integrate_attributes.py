@@ -83,7 +83,8 @@ def test_no_attributes_unless_requested_and_clear_error_for_unknown():
     f = _rotation()
     lines = trace(f, [1.0, 0.0, 0.0], max_time=1.0)
     assert lines.point_data == {}
-    assert set(lines.line_data) == {"seed_id", "reason", "n_accepted", "n_rejected", "stiff"}
+    assert set(lines.line_data) == {"seed_id", "reason", "n_accepted", "n_rejected", "stiff",
+                                    "n_crossing"}
     with pytest.raises(KeyError, match="unknown attribute 'pressure'.*available:.*T"):
         trace(f, [1.0, 0.0, 0.0], max_time=1.0, attributes=("pressure",))
 

@@ -407,6 +407,7 @@ def run_tasks(setup, seeds, dirs, max_steps):
     owner = np.repeat(np.arange(n), counts)
     cols = {"reason": si[:, 1].astype(np.int8), "n_accepted": si[:, 2].astype(np.int32),
             "n_rejected": si[:, 3].astype(np.int32),
+            "n_crossing": np.zeros(len(si), np.int32),  # its steps end on cell faces
             "stiff": ((si[:, 4] >> 16) & 1).astype(np.int8), "stiff_steps": si[:, 5].astype(np.int32)}
     return pts, par[:, 0].copy(), par[:, 1].copy(), owner, cols
 

@@ -117,7 +117,7 @@ def _empty(field, opts) -> Lines:
         pd[n] = np.zeros((0, 3)) if n in ("velocity", "vorticity") else np.zeros(0)
     ld = {"seed_id": np.zeros(0, np.int64), "reason": np.zeros(0, np.int8),
           "n_accepted": np.zeros(0, np.int32), "n_rejected": np.zeros(0, np.int32),
-          "stiff": np.zeros(0, np.int8)}
+          "n_crossing": np.zeros(0, np.int32), "stiff": np.zeros(0, np.int8)}
     if opts.direction == "both":
         ld["reason_backward"] = np.zeros(0, np.int8)
     return Lines(np.zeros((0, 3)), np.zeros(1, np.int64), pd, ld)
