@@ -139,11 +139,10 @@ def test_framing_fills_the_image_and_touches_no_edge(extent, projection):
     rows, cols = np.flatnonzero(drawn.any(axis=1)), np.flatnonzero(drawn.any(axis=0))
     assert rows[0] > 0 and cols[0] > 0 and rows[-1] < size[1] - 1 and cols[-1] < size[0] - 1
     span = max((rows[-1] - rows[0] + 1) / size[1], (cols[-1] - cols[0] + 1) / size[0])
-    if span < 0.8 and projection == "perspective" and extent == (0.1, 1, 0.2):
-        pytest.xfail("perspective keeps the view on the bounds' centre, so this oblique thin box "
-                     f"spans {span:.2f}; re-centring on the projection needs the viewer's "
-                     "pinning to follow")
     assert span >= 0.8, f"{extent}: drawn span {span:.2f}"
+    # centred: perspective looks at the projected box's centre, not the bounds'
+    centre = ((cols[0] + cols[-1] + 1) / 2, (rows[0] + rows[-1] + 1) / 2)
+    assert centre == pytest.approx((size[0] / 2, size[1] / 2), abs=2.5), centre
 
 
 def test_named_views_look_along_their_axis():

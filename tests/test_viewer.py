@@ -18,10 +18,9 @@ from render_scenes import project
 
 from flowkit.lines import Lines
 from flowkit.render.style import load_style
+from flowkit.view import orbit
 
 SIZE = (640, 360)
-# fit = "sphere": the framing stays the same size while the drag orbits (the default, fitting
-# the projected bounds, refits the view for every direction until the orbit pins it)
 BASE = """\
 version = 1
 background = "#000000"
@@ -31,7 +30,6 @@ antialias = "none"
 azimuth = -90
 elevation = 0
 projection = "orthographic"
-fit = "sphere"
 
 [[bands]]
 color = { cmap = "gray", attribute = "speed", range = [0.0, 1.0] }
@@ -99,6 +97,7 @@ def fresh(viewer):
     viewer.reset_camera()
     viewer.history.clear()
     viewer.show_panel, viewer.show_axes, viewer.show_outline = False, True, False
+    viewer.show_legend = True
     viewer.probe, viewer.probe_pinned, viewer._hover = None, False, None
     glfw.set_window_should_close(viewer.window, False)
     viewer.step()
@@ -187,10 +186,10 @@ def test_zoom_pan_and_reset(fresh):
         return cols.min(), cols.max()
 
     lo, hi = extent()
-    fresh.on_scroll(2)  # orthographic: magnify 1 / 0.9**2
+    fresh.on_scroll(-2)  # orthographic: reduce to 0.9**2 (the fitted line spans 90 %)
     fresh.step()
     lo2, hi2 = extent()
-    assert (hi2 - lo2) / (hi - lo) == pytest.approx(1 / 0.81, rel=0.03)
+    assert (hi2 - lo2) / (hi - lo) == pytest.approx(0.81, rel=0.03)
     fresh.on_drag(40, 0, button=1)  # right drag pans: the scene follows the mouse
     fresh.step()
     lo3, hi3 = extent()
@@ -198,6 +197,27 @@ def test_zoom_pan_and_reset(fresh):
     fresh.on_key(__import__("glfw").KEY_R)
     fresh.step()
     assert extent() == (lo, hi)
+
+
+def test_named_view_keys_fit_once_then_orbit_at_that_scale(fresh):
+    import glfw
+
+    def width():
+        cols = np.flatnonzero(lit(scene(fresh)).any(axis=0))
+        return cols.max() + 1 - cols.min()
+
+    face_on = width()
+    fresh.on_key(glfw.KEY_1)  # +x: the line end on (framed by its sphere), hardly a dot
+    fresh.step()
+    assert fresh.camera.view is None and lit(scene(fresh)).sum() < 100
+    per_px = fresh.camera.setup(fresh.renderer.bounds, *SIZE).px_scale[1]
+    fresh.on_drag(90 / 0.4, 0)  # a quarter turn: face on again, at the scale of that fit
+    fresh.step()
+    assert fresh.camera.setup(fresh.renderer.bounds, *SIZE).px_scale[1] == per_px
+    assert width() == pytest.approx(2.0 / per_px, abs=6) and width() < 0.8 * face_on
+    fresh.on_key(glfw.KEY_R)  # the style's camera, fitted again
+    fresh.step()
+    assert width() == face_on
 
 
 def test_real_callbacks_drive_the_camera(fresh):
@@ -213,7 +233,7 @@ def test_real_callbacks_drive_the_camera(fresh):
     assert fresh.camera.azimuth == pytest.approx(-90 - 0.4 * 25)
     assert fresh.camera.elevation == pytest.approx(-0.4 * 10)
     fresh._key_cb(fresh.window, glfw.KEY_R, 0, glfw.PRESS, 0)
-    assert fresh.camera == fresh.style.camera
+    assert fresh.camera == orbit.pinned(fresh.style.camera, fresh.renderer.bounds, SIZE)
     fresh._key_cb(fresh.window, glfw.KEY_ESCAPE, 0, glfw.PRESS, 0)
     assert fresh.should_close
 
@@ -300,7 +320,13 @@ def test_save_style_round_trips(fresh, tmp_path):
     assert fresh.error is None
 
 
-def test_colour_key_cycles_attribute(fresh):
+def legend_pixels(v) -> np.ndarray:
+    """The picture inside the legend's box, and the scene (no overlays) there."""
+    x0, y0, x1, y1 = v.overlays.box("legend")
+    return v.image()[y0:y1, x0:x1, :3].astype(int), scene(v)[y0:y1, x0:x1]
+
+
+def test_colour_key_cycles_attribute_and_the_legend_follows(fresh):
     import glfw
 
     img = scene(fresh)
@@ -308,16 +334,91 @@ def test_colour_key_cycles_attribute(fresh):
     cols = np.flatnonzero(lit(img[row:row + 1]).any(axis=0))
     left, right = img[row, cols.min() + 2, 0], img[row, cols.max() - 2, 0]
     assert left < 25 and right > 230  # speed = x: dark to bright
-    readout = fresh.overlays.overlays["colour"].image  # the attribute and range shown
+    # the renderer's legend, in a corner of the scene the line leaves free (not the axes')
+    x0, y0, x1, y1 = fresh.overlays.box("legend")
+    assert (x0 < 30 or x1 > SIZE[0] - 30) and y0 < 30 and y1 < SIZE[1] / 2
+    legend, under = legend_pixels(fresh)
+    assert not lit(under).any()  # nothing drawn under it ...
+    assert lit(legend).mean() > 0.15  # ... its bar and text are (its panel is the black background)
+    # the gray bar's ends: dark on the left, bright on the right
+    bar = legend[:, :, 0][(np.abs(legend - legend[..., :1]) <= 1).all(axis=2)]
+    assert bar.min() < 20 and bar.max() > 235
     fresh.on_key(glfw.KEY_C)
     fresh.step()
     assert fresh.style.line_style.bands[0].color.attribute == "temp"
-    assert fresh.overlays.overlays["colour"].image is not readout
-    assert not np.array_equal(fresh.overlays.overlays["colour"].image[:, :60], readout[:, :60])
+    assert fresh.style.line_style.bands[0].color.range is None  # automatic: temp's own range
+    assert fresh.color_map(resolved=True).range == (0.0, 1.0)
     img = scene(fresh)
     assert img[row, cols.min() + 2, 0] > 230 and img[row, cols.max() - 2, 0] < 25
+    legend2, _ = legend_pixels(fresh)  # "temp", no units, instead of "speed [m/s]"
+    assert legend2.shape != legend.shape or (legend2 != legend).any()
+    fresh.on_key(glfw.KEY_L)  # off: the scene alone there
+    fresh.step()
+    assert fresh.overlays.box("legend") is None
+    np.testing.assert_array_equal(fresh.image()[y0:y1, x0:x1, :3], scene(fresh)[y0:y1, x0:x1])
+    fresh.on_key(glfw.KEY_L)
     fresh.on_key(glfw.KEY_C)
     assert fresh.style.line_style.bands[0].color.attribute == "speed"
+    fresh.step()
+    np.testing.assert_array_equal(legend_pixels(fresh)[0], legend)  # back as it was
+
+
+def test_legend_sits_in_the_scene_right_of_the_panel(fresh):
+    import glfw
+
+    fresh.on_key(glfw.KEY_H)
+    fresh.step()
+    screen = fresh.step(read_screen=True)[:, :, :3].astype(int)
+    x0, y0, x1, y1 = fresh.overlays.box("legend")
+    dx = fresh.scene_origin
+    assert dx > 200 and x1 <= fresh.scene_size[0]
+    np.testing.assert_array_equal(screen[y0:y1, dx + x0:dx + x1], legend_pixels(fresh)[0])
+
+
+AUTO = BASE.replace(', range = [0.0, 1.0] }', ' }')
+
+
+def test_automatic_ranges_in_the_panel_and_the_saved_file(fresh, tmp_path):
+    """A style without a range (and one with percentiles): drawn, shown resolved in the panel
+    (which draws without error), set, and back to automatic, saved without frozen numbers."""
+    write(fresh.style_path, AUTO)
+    fresh.show_panel = True
+    for _ in range(2):
+        fresh.step()
+    assert fresh.error is None and fresh.color_map().range is None
+    assert fresh.color_map(resolved=True).range == (0.0, 1.0)
+    fresh.show_panel = False  # the scene as wide as the window: the line across it
+    fresh.step()
+    img = scene(fresh)
+    row = int(np.flatnonzero(lit(img).any(axis=1)).mean())
+    cols = np.flatnonzero(lit(img[row:row + 1]).any(axis=0))
+    assert img[row, cols.min() + 2, 0] < 25 and img[row, cols.max() - 2, 0] > 230
+    fresh.set_color_range((0.25, 0.5))
+    fresh.step()
+    assert fresh.color_map().range == (0.25, 0.5)
+    fresh.set_color_range(None)  # "data range": automatic again
+    fresh.step()
+    assert fresh.color_map().range is None and fresh.style == fresh.file_style
+    fresh.set_color_range((0.25, 0.5))
+    fresh.set_color_range(None)
+    out = fresh.save_style(tmp_path / "auto.toml")
+    assert "range" not in out.read_text() and load_style(out) == fresh.style
+    # percentiles: resolved for the panel, kept by "data range" and by C
+    write(fresh.style_path, BASE.replace('range = [0.0, 1.0]', 'range = "p10..p90"'))
+    fresh.show_panel = True
+    fresh.step()
+    lo, hi = fresh.color_map(resolved=True).range
+    assert lo == pytest.approx(0.1) and hi == pytest.approx(0.9)
+    fresh.set_color_range((0.0, 2.0))
+    fresh.set_color_range(None)
+    assert fresh.color_map().range == "p10..p90"
+    fresh.cycle_color_attribute()
+    assert fresh.color_map() == fresh.style.line_style.bands[0].color
+    assert fresh.color_map().range == "p10..p90" and fresh.color_map().attribute == "temp"
+    fresh.step()
+    assert fresh.error is None
+    text = fresh.save_style(tmp_path / "pct.toml").read_text()
+    assert 'range = "p10..p90"' in text and "temp" in text
 
 
 def test_screenshot_key_writes_png(fresh):
@@ -534,8 +635,9 @@ def test_click_pins_the_probe_and_data_range_resets(fresh):
     fresh._button_cb(fresh.window, glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0)  # on empty scene
     fresh.step()
     assert fresh.probe is None and fresh.overlays.box("probe") is None
-    # the colour range: set, then back to the attribute's data range
+    # the colour range: set, then back to the attribute's data range (automatic)
     fresh.set_color_range((0.25, 0.5))
     assert fresh.color_map().range == (0.25, 0.5)
     fresh.set_color_range(None)
-    assert fresh.color_map().range == fresh.value_range("speed") == (0.0, 1.0)
+    assert fresh.color_map().range is None
+    assert fresh.color_map(resolved=True).range == fresh.value_range("speed") == (0.0, 1.0)

@@ -207,12 +207,14 @@ def test_orbit_zoom_pan():
     fit = orbit.pinned(cam, BOUNDS, size).distance
     assert z.distance == pytest.approx(fit * 0.9 ** 3)
     assert orbit.zoom(Camera(projection="orthographic"), -1, BOUNDS, size).zoom == pytest.approx(0.9)
-    # pan: the target's image moves with the mouse, in pixels
-    p = orbit.pan(cam, 30, -20, BOUNDS, size)
-    s = p.setup(BOUNDS, *size)
-    clip = s.proj @ s.view @ np.r_[BOUNDS.mean(axis=1), 1.0]
-    px = ((clip[0] / clip[3] + 1) / 2 * size[0], (1 - clip[1] / clip[3]) / 2 * size[1])
-    assert px == pytest.approx((200 + 30, 150 - 20), abs=1e-6)
+    # pan: the bounds' centre's image moves with the mouse, in pixels
+    def at(c):
+        s = c.setup(BOUNDS, *size)
+        clip = s.proj @ s.view @ np.r_[BOUNDS.mean(axis=1), 1.0]
+        return np.array([(clip[0] / clip[3] + 1) / 2 * size[0], (1 - clip[1] / clip[3]) / 2 * size[1]])
+
+    np.testing.assert_allclose(at(orbit.pan(cam, 30, -20, BOUNDS, size)) - at(cam), (30, -20),
+                               atol=1e-6)
     o = orbit.pan(Camera(projection="orthographic"), 30, -20, BOUNDS, size)
     so, s0 = o.setup(BOUNDS, *size), Camera(projection="orthographic").setup(BOUNDS, *size)
     assert so.px_scale[1] == pytest.approx(s0.px_scale[1])  # orthographic pan keeps the scale
@@ -396,3 +398,46 @@ def test_domain_bounds_and_outline_edges():
     d = np.abs(edges[:, 1] - edges[:, 0])
     assert ((d > 0).sum(axis=1) == 1).all()  # each edge along one axis
     assert sorted(d.max(axis=1)) == [0.5] * 4 + [1.0] * 4 + [4.0] * 4
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic"])
+def test_orbiting_a_pinned_camera_keeps_the_scale(projection):
+    """Fitted once, the scale stays while the view turns; refitting at every direction (what
+    pinning prevents) changes it, since the projected bounds differ from every side."""
+    size = (400, 300)
+
+    def scale(cam):  # world size of a pixel at the target
+        s = cam.setup(BOUNDS, *size)
+        return s.px_scale[0] * np.linalg.norm(s.eye - s.target) + s.px_scale[1]
+
+    cam = Camera(azimuth=30, elevation=20, projection=projection)
+    p = orbit.pinned(cam, BOUNDS, size)
+    assert orbit.is_pinned(p) and scale(p) == pytest.approx(scale(cam), rel=1e-12)
+    pinned_scales, refit_scales = [], []
+    for _ in range(12):
+        p, cam = orbit.orbit(p, 75, 10), orbit.orbit(cam, 75, 10)
+        pinned_scales.append(scale(p))
+        refit_scales.append(scale(cam))
+    assert np.ptp(pinned_scales) <= 1e-9 * pinned_scales[0]
+    assert np.ptp(refit_scales) > 0.1 * refit_scales[0]
+
+
+@pytest.mark.parametrize("view", ["+x", "-z", "iso"])
+def test_a_named_view_pins_to_azimuth_and_elevation(view):
+    """Pinned, a named view becomes the same view as azimuth/elevation, so the mouse orbits it."""
+    cam, size = Camera(view=view), (400, 300)
+    p = orbit.pinned(cam, BOUNDS, size)
+    assert p.view is None and p.up is not None
+    a, b = cam.setup(BOUNDS, *size), p.setup(BOUNDS, *size)
+    np.testing.assert_allclose(b.view, a.view, atol=1e-12)
+    np.testing.assert_allclose(b.proj, a.proj, rtol=1e-9)
+    assert not np.allclose(orbit.orbit(p, 20, 0).setup(BOUNDS, *size).view, b.view)
+
+
+def test_a_point_like_domain_is_framed_by_its_sphere():
+    line = np.array([[-1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])  # a straight line, seen end on
+    for projection in ("perspective", "orthographic"):
+        end_on = Camera(view="+x", projection=projection).setup(line, 400, 300)
+        sphere = Camera(view="+x", projection=projection, fit="sphere").setup(line, 400, 300)
+        np.testing.assert_allclose(end_on.proj, sphere.proj)
+        np.testing.assert_allclose(end_on.eye, sphere.eye)

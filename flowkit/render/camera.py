@@ -26,11 +26,14 @@ class Camera:
     ``up`` None: the coordinate axis (z, then y, then x) that lays the domain's longest axis
     along the image's long side.  ``distance`` (perspective) or the view height (orthographic)
     None: fitted.  ``fit = "bounds"`` (default) fits the bounds' corners as projected on the
-    image, to FILL of its limiting side, so a thin or tall domain fills the frame; ``"sphere"``
-    fits their bounding sphere, the same size from every direction.  With an explicit ``target``
-    the fit about the bounds' centre grows as the bounding sphere about the target does.  ``zoom`` > 1
-    magnifies.  ``fov`` is
-    the vertical field of view (perspective)."""
+    image, to FILL of its limiting side (perspective: looking at the projected box's centre), so
+    a thin or tall domain fills the frame; ``"sphere"``
+    fits their bounding sphere, the same size from every direction (also the fit of a domain
+    seen as a point, e.g. a straight line end on).  With an explicit ``target``
+    the fit about the bounds' centre grows as the bounding sphere about the target does.
+    ``parallel_scale`` (orthographic): half the view's height in world units, as ParaView's
+    parallel scale; None: fitted.  ``zoom`` > 1 magnifies (a fitted distance, or the view
+    height).  ``fov`` is the vertical field of view (perspective)."""
 
     azimuth: float = -60.0
     elevation: float = 25.0
@@ -42,8 +45,13 @@ class Camera:
     zoom: float = 1.0
     view: str | None = None
     fit: str = "bounds"
+    parallel_scale: float | None = None
 
     def __post_init__(self):
+        if self.parallel_scale is not None and not (math.isfinite(self.parallel_scale)
+                                                    and self.parallel_scale > 0):
+            raise ValueError(f"camera parallel_scale = {self.parallel_scale!r} must be a "
+                             "positive number")
         if self.fit not in FITS:
             raise ValueError(f"camera fit = {self.fit!r} is not allowed; expected one of "
                              f"{', '.join(FITS)}")
@@ -117,7 +125,8 @@ class Camera:
         s, u = _screen_axes(d, up)
         rel = corners - mid
         x, y, z = rel @ s, rel @ u, rel @ d  # corners on the image's axes and towards the eye
-        sphere = self.fit == "sphere"
+        # a domain seen as a point (a straight line end on) has no projected extent to fit
+        sphere = self.fit == "sphere" or max(np.ptp(x), np.ptp(y)) < 1e-3 * radius
         persp = self.projection == "perspective"
         if self.distance is not None:
             dist = self.distance
@@ -126,7 +135,12 @@ class Camera:
         elif sphere:  # the tighter of the vertical and horizontal half-angles holds the sphere
             dist = radius / math.sin(min(half_fov, math.atan(math.tan(half_fov) * aspect))) / self.zoom
         else:
-            dist = _fit_distance(x, y, z, math.tan(half_fov), aspect, radius) * grow / self.zoom
+            dist, (a, b) = _fit_distance(x, y, z, math.tan(half_fov), aspect, radius,
+                                         recentre=self.target is None)
+            dist *= grow / self.zoom
+            if self.target is None:  # looking at the projected box's centre
+                centre = centre + a * s + b * u
+                radius = max(float(np.max(np.linalg.norm(corners - centre, axis=1))), 1e-9)
         eye = centre + dist * d
         view = look_at(eye, centre, up)
         near = max(dist - 1.01 * radius, dist * 1e-3)
@@ -136,7 +150,9 @@ class Camera:
             # world units per pixel at view depth z (< 0): px_a * (-z) + px_b
             px_a, px_b = 2 * math.tan(half_fov) / height, 0.0
         else:
-            if sphere:
+            if self.parallel_scale is not None:
+                half_h = self.parallel_scale / self.zoom
+            elif sphere:
                 half_h = radius / self.zoom / min(1.0, aspect)
             else:
                 half = max(float(np.max(np.abs(x))) / aspect, float(np.max(np.abs(y))), 1e-9)
@@ -144,25 +160,46 @@ class Camera:
             near = dist - 1.01 * radius  # orthographic: a near plane behind the eye is fine
             proj = orthographic(half_h * aspect, half_h, near, far)
             px_a, px_b = 0.0, 2 * half_h / height
-        return CameraSetup(view, proj, eye, (px_a, px_b))
+        return CameraSetup(view, proj, eye, (px_a, px_b), centre)
 
 
-def _fit_distance(x, y, z, tan_y, aspect, radius) -> float:
-    """Eye distance at which the corners (image axes x, y; z towards the eye) span FILL of the
-    image's limiting side, with none nearer than 4 % to an edge (the view stays on the bounds'
-    centre, so perspective makes the projection a little lopsided)."""
+def _centring_shift(xy: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """The sideways shifts (a, b) of eye and target that centre corners at image coordinates
+    ``xy`` (2, n) and ``depth`` (n,) in front of the eye: max((x - a) / depth) = -min(...), the
+    same for y.  That sum falls as the shift grows; searched on a grid, 256 times finer in each
+    of two rounds (1/65536 of the extent)."""
+    lo, hi = xy.min(axis=1), xy.max(axis=1)
+    for _ in range(2):
+        a = np.linspace(lo, hi, 257, axis=1)  # (2, 257)
+        p = (xy[:, :, None] - a[:, None, :]) / depth[None, :, None]  # (2, n, 257)
+        g = p.max(axis=1) + p.min(axis=1)
+        k = np.clip((g > 0).sum(axis=1), 1, 256)  # g falls: the first index with g <= 0
+        lo, hi = a[[0, 1], k - 1], a[[0, 1], k]
+    return 0.5 * (lo + hi)
+
+
+def _fit_distance(x, y, z, tan_y, aspect, radius, recentre: bool = True):
+    """(eye distance, (a, b)): at that distance the corners (image axes x, y; z towards the eye)
+    span FILL of the image's limiting side, with none nearer than 4 % to an edge, seen from the
+    bounds' centre shifted by a, b along the image's axes (``recentre``: the shift that centres
+    the projected box, which perspective otherwise makes lopsided; else none)."""
+    xy = np.stack([x, y])
+    scale = np.array([[tan_y * aspect], [tan_y]])
+
     def extents(dist):
         depth = np.maximum(dist - z, 1e-12 * dist)
-        px, py = x / depth / (tan_y * aspect), y / depth / tan_y  # -1..1 on the image
-        return max(np.ptp(px), np.ptp(py)) / 2, max(np.abs(px).max(), np.abs(py).max())
+        ab = _centring_shift(xy, depth) if recentre else np.zeros(2)
+        p = (xy - ab[:, None]) / depth / scale  # -1..1 on the image
+        return np.ptp(p, axis=1).max() / 2, np.abs(p).max(), ab
 
     lo = float(np.max(z)) + 1e-9 * radius
     hi = max(lo, radius) * 4.0 + radius / tan_y
-    for _ in range(60):  # the smallest distance with span <= FILL and every corner <= 0.96
+    for _ in range(45):  # the smallest distance with span <= FILL and every corner <= 0.96
         mid = 0.5 * (lo + hi)
-        span, edge = extents(mid)
+        span, edge, _ = extents(mid)
         lo, hi = (mid, hi) if span > FILL or edge > 0.96 else (lo, mid)
-    return max(hi, radius * 1e-6)
+    dist = max(hi, radius * 1e-6)
+    return dist, tuple(float(v) for v in extents(dist)[2])
 
 
 def _screen_axes(d: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -181,6 +218,7 @@ class CameraSetup:
     proj: np.ndarray
     eye: np.ndarray
     px_scale: tuple[float, float]  # world per pixel = px_scale[0] * (-z_view) + px_scale[1]
+    target: np.ndarray  # the point looked at (a fitted perspective view: the projection's centre)
 
 
 def look_at(eye, target, up) -> np.ndarray:

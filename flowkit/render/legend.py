@@ -114,14 +114,33 @@ def _maps(style: Style):
     return out
 
 
+def drawn_pixels(image: np.ndarray, style: Style) -> np.ndarray:
+    """(H, W) bool: the pixels of a picture of ``style`` that differ from its background (what
+    "auto" placement keeps the legend off)."""
+    bg = np.array([round(255 * c) for c in (style.background or (0, 0, 0, 0))], int)
+    return np.abs(image.astype(int) - bg).max(axis=2) > 16
+
+
+def legend_key(style: Style) -> tuple:
+    """What ``legend_image`` draws of ``style`` (ranges as numbers): equal keys, equal legends
+    at one size, so a caller redraws its legend only when this changes."""
+    tf = style.transfer
+    swatches = () if tf is None else tuple(_swatch_colour(style, r.style) for r in tf.ranges
+                                           if r.style is not None)
+    return tuple(_maps(style)), tf, swatches, style.background, style.legend
+
+
 # -- the legend ---------------------------------------------------------------------------------
 def legend_image(style: Style, size: tuple[int, int], *, units: dict[str, str] | None = None,
                  scale: float = 1.0, placement: str | None = None,
-                 coverage: np.ndarray | None = None) -> tuple[np.ndarray, Box | None]:
+                 coverage: np.ndarray | None = None,
+                 text_px: float | None = None) -> tuple[np.ndarray, Box | None]:
     """The legend of ``style`` for a ``size`` = (width, height) picture.
 
     ``style``: ranges already numbers (``LineRenderer.resolve``).  ``units``: attribute ->
-    units (``Lines.units``).  ``scale``: multiplies text and bar sizes.  ``placement``: one of
+    units (``Lines.units``).  ``scale``: multiplies text and bar sizes.  ``text_px``: the text
+    size in pixels instead of 1/24 of the picture's smaller side (a window's legend keeps the
+    size of the window's other text).  ``placement``: one of
     PLACEMENTS (default: the style's ``[legend] placement``); "auto" puts the panel in the corner
     where ``coverage`` ((H, W) bool, the drawn pixels) has the fewest pixels under it (top-right
     without ``coverage``).  Returns (RGBA uint8 (H, W, 4), box (x0, y0, x1, y1)), or an empty
@@ -135,7 +154,7 @@ def legend_image(style: Style, size: tuple[int, int], *, units: dict[str, str] |
     maps = _maps(style)
     if not maps and tf is None:
         return out, None
-    fs = max(10.0, min(w, h) / 24) * scale  # font size, pixels
+    fs = (text_px or max(10.0, min(w, h) / 24)) * scale  # font size, pixels
     font, small = _font(fs), _font(0.85 * fs)
     fill, ink = _colours(style)
     pad, gap = round(0.5 * fs), round(0.45 * fs)

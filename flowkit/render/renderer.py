@@ -407,12 +407,11 @@ class LineRenderer:
         ``[legend] show``), placed where it covers the fewest drawn pixels unless the style
         says where, and its annotations: title, the snapshot's time (the lines' metadata
         ``snapshot_time``), text and a scale bar at the depth of the view's target."""
-        from .legend import annotation_image, composite, legend_image
+        from .legend import annotation_image, composite, drawn_pixels, legend_image
 
         style = self.resolve(style)
         h, w = image.shape[:2]
-        bg = np.array([round(255 * c) for c in (style.background or (0, 0, 0, 0))], int)
-        drawn = np.abs(image.astype(int) - bg).max(axis=2) > 16
+        drawn = drawn_pixels(image, style)
         box = None
         if style.legend.show:
             leg, box = legend_image(style, (w, h), units=self.lines.units, scale=scale,

@@ -623,7 +623,7 @@ def style_from_dict(data: dict, where: str = "style") -> Style:
 
 def camera_from_dict(where: str, t: dict) -> Camera:
     _check_keys(where, t, {"azimuth", "elevation", "distance", "target", "up", "fov", "projection",
-                           "zoom", "view", "fit"})
+                           "zoom", "view", "fit", "parallel_scale"})
     kw = {}
     if "view" in t:
         if t["view"] not in VIEWS:
@@ -640,8 +640,9 @@ def camera_from_dict(where: str, t: dict) -> Camera:
         kw["distance"] = _number(where, "distance", t["distance"], 0.0, lo_open=True)
     if "fov" in t:
         kw["fov"] = _number(where, "fov", t["fov"], 1.0, 170.0)
-    if "zoom" in t:
-        kw["zoom"] = _number(where, "zoom", t["zoom"], 0.0, lo_open=True)
+    for k in ("zoom", "parallel_scale"):
+        if k in t:
+            kw[k] = _number(where, k, t[k], 0.0, lo_open=True)
     for k in ("target", "up"):
         if k in t:
             v = t[k]

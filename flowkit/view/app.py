@@ -2,13 +2,15 @@
 offscreen target (blitted to the window), a Dear ImGui panel over it, the style file polled.
 
 ``Viewer.step()`` runs one frame: events, style file, panel, scene (redrawn only when the style,
-camera, outline or viewport changed), overlays (axes, colour range, probe), panel, swap.  ``run``
+camera, outline or viewport changed), overlays (axes, legend, probe), panel, swap.  ``run``
 calls it only when something happened (input, a window event, a style file change, a text field
 being typed in); otherwise it sleeps in ``glfw.wait_events_timeout``, waking to poll the file.
 The event handlers (``on_drag``, ``on_scroll``, ``on_key``) are what the glfw callbacks call, and
 what tests call.
 
 The scene's viewport is the window right of the panel (the whole window with the panel hidden).
+The camera is fitted to it once (on open, R, a named view, a new camera in the style file) and
+pinned (``orbit.pinned``), so orbiting, zooming and panning keep the scale.
 
 Style updates: a new style whose template flags equal the current ones only changes uniforms;
 other flags select (and, the first time, compile) another program.  ``updates`` counts both.
@@ -16,6 +18,7 @@ other flags select (and, the first time, compile) another program.  ``updates`` 
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 import tomllib
@@ -29,9 +32,11 @@ import glfw  # isort: skip
 import moderngl  # isort: skip
 
 from ..lines import Lines
+from ..render.camera import VIEWS, Camera
 from ..render.context import create_context
+from ..render.legend import drawn_pixels, legend_image, legend_key
 from ..render.renderer import LineRenderer, save_png
-from ..render.style import Style, StyleError, save_style, style_from_dict
+from ..render.style import ColorMap, Range, Style, StyleError, save_style, style_from_dict
 from . import orbit
 from .edit import colormapped, get_at, replace_at, with_color_attribute
 from .history import History
@@ -44,6 +49,7 @@ from .watch import FileWatch
 IDLE_POLL = 0.25  # s between style file polls while nothing happens
 WAKE_FRAMES = 3  # frames drawn after an event (ImGui settles hover and active states)
 MARGIN = 8  # px between overlays and the scene's edges
+LEGEND_TEXT_PX = 14  # the legend's text size (times the HiDPI scale), near the panel's
 
 
 class ViewerError(RuntimeError):
@@ -144,13 +150,13 @@ class Viewer:
         self.style = self.file_style = style  # in effect / last good from the file
         self.source = text  # the file's text: save_style keeps its comments and layout
         self.flags = self._flags(style)
-        self.camera = style.camera
+        self._camera, self._fit = style.camera, style.camera  # fitted at the first frame
         self.updates = {"uniforms": 0, "recompile": 0}
         self.last_update: str | None = None
         self.error: str | None = None  # shown in the panel until a good style replaces it
         self.message = ""
         self.color_attributes = sorted(k for k, v in lines.point_data.items() if np.ndim(v) == 1)
-        self._ranges: dict[str, tuple[float, float]] = {}
+        self._resolved: tuple[Style | None, Style] = (None, style)
         self.size = glfw.get_framebuffer_size(self.window)
         self.frame_time = self.scene_time = 0.0
         self.frames = self.scene_draws = 0
@@ -161,6 +167,7 @@ class Viewer:
         self._pixel_scale = 1.0
         # what is shown besides the lines (keys and panel toggle them)
         self.show_axes = True
+        self.show_legend = style.legend.show
         self.show_outline = False
         self.show_panel = True
         self.probe_on_hover = True
@@ -217,7 +224,9 @@ class Viewer:
         self.error = None
         kind = "uniforms" if flags == self.flags else "recompile"
         if style.camera != self.style.camera:  # the file moved the camera: follow it
-            self.camera = style.camera
+            self.fit_camera(style.camera)
+        if style.legend.show != self.style.legend.show:  # and its legend switch
+            self.show_legend = style.legend.show
         self.style, self.flags = style, flags
         self.updates[kind] += 1
         self.last_update = kind
@@ -283,19 +292,22 @@ class Viewer:
         self.message = f"saved {path}"
         return path
 
-    def value_range(self, name: str) -> tuple[float, float]:
-        r = self._ranges.get(name)
-        if r is None:
-            v = np.asarray(self.lines.point_data[name], np.float64)
-            v = v[np.isfinite(v)]
-            lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 1.0)
-            if not hi > lo:
-                lo, hi = lo - 0.5, lo + 0.5
-            r = self._ranges[name] = (lo, hi)
-        return r
+    def value_range(self, name: str, spec: Range = None) -> tuple[float, float]:
+        """The range ``spec`` (None: min..max, "pA..pB": percentiles) of attribute ``name`` over
+        the lines: what an automatic range of the style resolves to."""
+        return self.renderer.value_range(name, spec)
+
+    @property
+    def resolved(self) -> Style:
+        """The style in effect with its automatic ranges as numbers: what is drawn, what the
+        panel's range fields and the legend show."""
+        if self._resolved[0] is not self.style:
+            self._resolved = (self.style, self.renderer.resolve(self.style))
+        return self._resolved[1]
 
     def cycle_color_attribute(self) -> str | None:
-        """Colour-mapped colours read the next scalar point attribute, over its data range."""
+        """Colour-mapped colours read the next scalar point attribute, over its data range (a
+        percentile range stays: it holds for any attribute)."""
         paths = colormapped(self.style)
         names = self.color_attributes
         if not paths or not names:
@@ -304,39 +316,76 @@ class Viewer:
             return None
         current = get_at(self.style, paths[0]).attribute
         name = names[(names.index(current) + 1) % len(names)] if current in names else names[0]
-        lo, hi = self.value_range(name)
-        self.apply(with_color_attribute(self.style, name, (lo, hi)))
+        self.apply(with_color_attribute(self.style, name))
+        lo, hi = self.color_map(resolved=True).range
         self.message = f"colour: {name} over [{lo:.4g}, {hi:.4g}]"
         return name
 
-    def color_map(self):
-        """The first colour-mapped colour (what the colour read-out and legend show), or None."""
+    def color_map(self, resolved: bool = False) -> ColorMap | None:
+        """The first colour-mapped colour (what the legend's first bar and the panel show), as
+        the style gives it or ``resolved`` (its range as numbers); None when there is none."""
         paths = colormapped(self.style)
-        return get_at(self.style, paths[0]) if paths else None
+        return get_at(self.resolved if resolved else self.style, paths[0]) if paths else None
+
+    def _data_range_spec(self, path: tuple) -> Range:
+        """The automatic range "data range" gives the map at ``path``: the style file's
+        percentile range there (for the same attribute), else None (min to max)."""
+        try:
+            f = get_at(self.file_style, path)
+        except (KeyError, IndexError, AttributeError):
+            return None
+        same = isinstance(f, ColorMap) and f.attribute == get_at(self.style, path).attribute
+        return f.range if same and isinstance(f.range, str) else None
 
     def set_color_range(self, value_range=None, merge: bool = False) -> str | None:
-        """Every colour-mapped colour of the shown attribute over ``value_range`` (None: the
-        attribute's data range)."""
+        """Every colour-mapped colour of the shown attribute over ``value_range``, or with None
+        over the attribute's data range, automatic again (``_data_range_spec``): a saved style
+        then leaves the range to the data instead of freezing today's numbers."""
         cm = self.color_map()
         if cm is None:
             return None
-        if value_range is None:
-            value_range = self.value_range(cm.attribute)
-        lo, hi = (float(v) for v in value_range)
         style = self.style
         for path in colormapped(style):
-            c = get_at(style, path)
-            if c.attribute == cm.attribute:
+            if get_at(style, path).attribute == cm.attribute:
+                r = (self._data_range_spec(path) if value_range is None
+                     else tuple(float(v) for v in value_range))
                 try:
-                    style = replace_at(style, path + ("range",), (lo, hi))
+                    style = replace_at(style, path + ("range",), r)
                 except StyleError as e:
                     self._report(str(e))
                     return None
         return self.apply(style, key="colour range", merge=merge)
 
     # -- camera and keys --------------------------------------------------------------------------
+    @property
+    def camera(self) -> Camera:
+        """The camera drawn with: pinned (``orbit.pinned``), fitted once to the scene's
+        viewport by ``fit_camera``, so orbiting keeps the scale."""
+        if self._fit is not None:  # fitted when first needed: at the viewport's size then
+            self._camera = orbit.pinned(self._fit, self.renderer.bounds, self.scene_size)
+            self._fit = None
+        return self._camera
+
+    @camera.setter
+    def camera(self, cam: Camera) -> None:
+        self._camera, self._fit = cam, None
+
+    def fit_camera(self, cam: Camera) -> None:
+        """Show the lines through ``cam``, its fitted parts (distance, view height, up, ...)
+        fitted at the next frame's viewport and then kept."""
+        self._fit = cam
+        self.wake()
+
     def reset_camera(self) -> None:
-        self.camera = self.style.camera
+        """The style's camera, fitted again (R)."""
+        self.fit_camera(self.style.camera)
+
+    def set_view(self, view: str) -> None:
+        """Look along a named view ("+x", ..., "iso"; ``render.camera.VIEWS``) with the style's
+        projection, fitted to the lines as ParaView's view buttons do."""
+        self.fit_camera(dataclasses.replace(self.style.camera, view=view, distance=None,
+                                            target=None, parallel_scale=None))
+        self.message = f"view {view}"
 
     def on_drag(self, dx: float, dy: float, button: int = 0, mods: int = 0) -> None:
         """Left drag orbits; right or middle drag (or shift + left) pans.  Pixels, y down."""
@@ -358,17 +407,20 @@ class Viewer:
 
     # glfw key -> (its name, what it does); Ctrl+Z, Ctrl+Shift+Z, Ctrl+S besides
     KEYS: ClassVar = {
-        glfw.KEY_R: ("R", "reset camera"), glfw.KEY_S: ("S", "screenshot"),
+        glfw.KEY_R: ("R", "reset camera"), glfw.KEY_1: ("1-7", "views " + " ".join(VIEWS)),
+        glfw.KEY_S: ("S", "screenshot"),
         glfw.KEY_C: ("C", "next colour attribute"), glfw.KEY_A: ("A", "orientation axes"),
-        glfw.KEY_B: ("B", "outline"), glfw.KEY_P: ("P", "probe on hover"),
+        glfw.KEY_B: ("B", "outline"), glfw.KEY_L: ("L", "legend"),
+        glfw.KEY_P: ("P", "probe on hover"),
         glfw.KEY_H: ("H", "hide/show the panel"), glfw.KEY_ESCAPE: ("Esc", "quit")}
-    _TOGGLES: ClassVar = {"axes": "show_axes", "outline": "show_outline",
+    _TOGGLES: ClassVar = {"axes": "show_axes", "outline": "show_outline", "legend": "show_legend",
                           "probe": "probe_on_hover", "panel": "show_panel"}
-    _TOGGLE_KEYS: ClassVar = {glfw.KEY_A: "axes", glfw.KEY_B: "outline", glfw.KEY_P: "probe",
+    _TOGGLE_KEYS: ClassVar = {glfw.KEY_A: "axes", glfw.KEY_B: "outline", glfw.KEY_L: "legend",
+                              glfw.KEY_P: "probe",
                               glfw.KEY_H: "panel"}
 
     def shown(self, what: str) -> bool:
-        """Whether "axes", "outline", "probe" (on hover) or "panel" is on."""
+        """Whether "axes", "outline", "legend", "probe" (on hover) or "panel" is on."""
         return getattr(self, self._TOGGLES[what])
 
     def toggle(self, what: str) -> None:
@@ -401,6 +453,8 @@ class Viewer:
             self.message = f"saved {self.screenshot()}"
         elif key == glfw.KEY_C:
             self.cycle_color_attribute()
+        elif glfw.KEY_1 <= key < glfw.KEY_1 + len(VIEWS):
+            self.set_view(VIEWS[key - glfw.KEY_1])
         elif key in self._TOGGLE_KEYS:
             self.toggle(self._TOGGLE_KEYS[key])
 
@@ -554,17 +608,36 @@ class Viewer:
         view = np.round(setup.view[:3, :3], 4)
         self._overlay("axes", view.tobytes() if self.show_axes else None,
                       lambda: axes_image(view), lambda w, h: (MARGIN, sh - h - MARGIN))
-        # the colour read-out, top right; a legend image goes in the same place:
-        # self._overlay("legend", key, make_legend, lambda w, h: (sw - w - MARGIN, MARGIN))
-        cm = self.color_map()
-        text = None
-        if cm is not None:
-            u = self.units.get(cm.attribute, "")
-            text = (f"colour: {cm.attribute}{f' [{u}]' if u and u != '1' else ''}\n"
-                    f"{cm.range[0]:.4g} to {cm.range[1]:.4g} ({cm.cmap})")
-        self._overlay("colour", text, lambda: text_image(text),
-                      lambda w, h: (sw - w - MARGIN, MARGIN))
+        self._update_legend()
         self._update_probe(setup)
+
+    def _update_legend(self) -> None:
+        """The renderer's legend of the style in effect, in the scene viewport where the style
+        places it; "auto" chooses the corner covering the fewest lines (and not the axes) when
+        the legend changes, and keeps it while the view moves."""
+        style = self.resolved
+        key = None
+        if self.show_legend:
+            key = (legend_key(style), self.units, tuple(self.scene_size), self._pixel_scale)
+        if key == self._overlay_keys.get("legend"):
+            return
+        self._overlay_keys["legend"] = key
+        box = None
+        if key is not None:
+            coverage = None
+            if style.legend.placement == "auto":
+                coverage = drawn_pixels(self.renderer.read(), style)
+                axes = self.overlays.box("axes")
+                if axes is not None:
+                    coverage[axes[1]:axes[3], axes[0]:axes[2]] = True
+            image, box = legend_image(style, self.scene_size, units=self.units,
+                                      scale=self._pixel_scale, coverage=coverage,
+                                      text_px=LEGEND_TEXT_PX)
+        if box is None:
+            self.overlays.remove("legend")
+        else:
+            x0, y0, x1, y1 = box
+            self.overlays.set("legend", image[y0:y1, x0:x1], (x0, y0))
 
     def _update_probe(self, setup) -> None:
         key = (self._scene_key, self._hover, self.probe_on_hover)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from ..render.style import ColorMap, Style, WidthMap
+from ..render.style import ColorMap, Range, Style, WidthMap
 
 KINDS = ("float", "color", "range", "cmap", "shape", "attribute")
 
@@ -106,9 +106,17 @@ def colormapped(style: Style) -> list[tuple]:
     return paths
 
 
-def with_color_attribute(style: Style, attribute: str, value_range: tuple[float, float]) -> Style:
-    """Every colour-mapped colour reads ``attribute`` over ``value_range``."""
+def auto_range(spec: Range) -> Range:
+    """What a range becomes when its map reads another attribute: a percentile spec holds for any
+    attribute and stays; numbers belong to the old attribute, so the new one's data range."""
+    return spec if isinstance(spec, str) else None
+
+
+def with_color_attribute(style: Style, attribute: str, value_range: Range | bool = True) -> Style:
+    """Every colour-mapped colour reads ``attribute``, over ``value_range`` (True: each map's
+    ``auto_range``)."""
     for path in colormapped(style):
         cm = get_at(style, path)
-        style = replace_at(style, path, ColorMap(cm.cmap, attribute, value_range))
+        r = auto_range(cm.range) if value_range is True else value_range
+        style = replace_at(style, path, ColorMap(cm.cmap, attribute, r))
     return style

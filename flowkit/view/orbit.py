@@ -1,7 +1,10 @@
 """Mouse camera control on the renderer's Camera (azimuth/elevation/distance about a target).
 
-The style's camera may leave distance and target to be fitted to the lines' bounds; the first
-zoom or pan pins them to the fitted values so the view does not jump."""
+A style's camera may leave the distance, target, up, the orthographic view height, or the
+direction (a named view) to be fitted to the lines' bounds.  A fit depends on the direction (the
+projected bounds differ from every side), so the viewer fits once (``pinned``: everything made
+explicit, the same view) and orbiting, zooming and panning then change only what they are asked
+to: the scale stays while the view turns, as in ParaView."""
 
 from __future__ import annotations
 
@@ -17,23 +20,36 @@ ZOOM_STEP = 0.9  # distance factor per scroll step (towards the target)
 MAX_ELEVATION = 89.0
 
 
-def _radius(bounds: np.ndarray, centre: np.ndarray) -> float:
-    corners = np.array(np.meshgrid(*bounds)).reshape(3, -1).T
-    return max(float(np.max(np.linalg.norm(corners - centre, axis=1))), 1e-9)
+def is_pinned(cam: Camera) -> bool:
+    return (cam.target is not None and cam.distance is not None and cam.up is not None
+            and cam.view is None
+            and (cam.projection != "orthographic" or cam.parallel_scale is not None))
 
 
 def pinned(cam: Camera, bounds: np.ndarray, size: tuple[int, int]) -> Camera:
-    """``cam`` with explicit target and distance giving the same view."""
-    if cam.target is not None and cam.distance is not None:
+    """``cam`` with explicit target, distance, up, azimuth/elevation (for a named view) and,
+    orthographic, parallel scale, giving the same view of ``bounds`` on a ``size`` image."""
+    if is_pinned(cam):
         return cam
-    centre = np.asarray(bounds, float).mean(axis=1) if cam.target is None else np.asarray(cam.target)
-    eye = cam.setup(bounds, *size).eye
-    return dataclasses.replace(cam, target=tuple(float(v) for v in centre),
-                               distance=float(np.linalg.norm(eye - centre)))
+    w, h = size
+    s = cam.setup(bounds, w, h)
+    up = cam.choose_up(bounds, w, h)
+    centre = s.target  # a fitted perspective view looks at its projection's centre
+    dist = float(np.linalg.norm(s.eye - centre))
+    e1, e2, u = cam.frame(up)
+    d = (s.eye - centre) / dist
+    kw = {"target": tuple(float(v) for v in centre), "distance": dist,
+          "up": tuple(float(v) for v in up), "view": None,
+          "azimuth": math.degrees(math.atan2(d @ e2, d @ e1)),
+          "elevation": math.degrees(math.asin(min(max(d @ u, -1.0), 1.0)))}
+    if cam.projection == "orthographic":  # the fitted half height, before the zoom
+        kw["parallel_scale"] = s.px_scale[1] * h / 2 * cam.zoom
+    return dataclasses.replace(cam, **kw)
 
 
 def orbit(cam: Camera, dx: float, dy: float) -> Camera:
-    """Drag right turns the scene right (the eye left); drag up tilts the eye up."""
+    """Drag right turns the scene right (the eye left); drag up tilts the eye up.  On a
+    ``pinned`` camera (else the fit, and so the scale, follows the direction)."""
     az = (cam.azimuth - DEG_PER_PIXEL * dx + 180.0) % 360.0 - 180.0
     el = min(max(cam.elevation + DEG_PER_PIXEL * dy, -MAX_ELEVATION), MAX_ELEVATION)
     return dataclasses.replace(cam, azimuth=az, elevation=el)
@@ -42,9 +58,9 @@ def orbit(cam: Camera, dx: float, dy: float) -> Camera:
 def zoom(cam: Camera, steps: float, bounds: np.ndarray, size: tuple[int, int]) -> Camera:
     """Scroll up (steps > 0) moves closer (perspective) or magnifies (orthographic)."""
     f = ZOOM_STEP ** steps
+    cam = pinned(cam, bounds, size)
     if cam.projection == "orthographic":
         return dataclasses.replace(cam, zoom=cam.zoom / f)
-    cam = pinned(cam, bounds, size)
     return dataclasses.replace(cam, distance=cam.distance * f)
 
 
@@ -54,14 +70,10 @@ def pan(cam: Camera, dx: float, dy: float, bounds: np.ndarray, size: tuple[int, 
     s = cam.setup(bounds, *size)
     px = s.px_scale[0] * cam.distance + s.px_scale[1]  # world size of a pixel at the target
     right, up = s.view[0, :3], s.view[1, :3]
-    old = np.asarray(cam.target, float)
-    new = old - px * dx * right + px * dy * up
-    z = cam.zoom
-    if cam.projection == "orthographic":  # its view height follows the radius about the target
-        z *= _radius(bounds, new) / _radius(bounds, old)
+    new = np.asarray(cam.target, float) - px * dx * right + px * dy * up
     if not all(math.isfinite(v) for v in new):
         return cam
-    return dataclasses.replace(cam, target=tuple(float(v) for v in new), zoom=z)
+    return dataclasses.replace(cam, target=tuple(float(v) for v in new))
 
 
 def zoom_at(cam: Camera, steps: float, bounds: np.ndarray, size: tuple[int, int], x: float,
@@ -80,7 +92,6 @@ def zoom_at(cam: Camera, steps: float, bounds: np.ndarray, size: tuple[int, int]
     if not all(math.isfinite(v) for v in new):
         return cam
     target = tuple(float(v) for v in new)
-    if cam.projection == "orthographic":  # the view height follows the radius about the target
-        z = cam.zoom / f * _radius(bounds, new) / _radius(bounds, old)
-        return dataclasses.replace(cam, target=target, zoom=z)
+    if cam.projection == "orthographic":
+        return dataclasses.replace(cam, target=target, zoom=cam.zoom / f)
     return dataclasses.replace(cam, target=target, distance=cam.distance * f)

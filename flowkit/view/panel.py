@@ -1,8 +1,9 @@
 """The Dear ImGui panel, docked on the window's left (the scene is the rest): frame time,
-messages and errors, "save style", undo/redo, what is shown (axes, outline, probe), the colour
-attribute and its range, then the style's parameters (edited through ``Viewer.edit``).  Widgets
-come from ``edit.params``: one per Param kind, so a new style parameter needs a Param, not new
-panel code.
+messages and errors, "save style", undo/redo, named views, what is shown (axes, outline, legend,
+probe), the colour attribute and its range (an automatic range shown as the numbers it resolves
+to), then the style's parameters (edited through ``Viewer.edit``).  Widgets come from
+``edit.params``: one per Param kind, so a new style parameter needs a Param, not new panel
+code.
 
 Numbers are kept as the panel shows them: a dragged or typed float is the decimal its widget
 displays (``shown``), a colour channel the 0-255 step its widget displays, so "save style"
@@ -17,9 +18,10 @@ import glfw
 import numpy as np
 from imgui_bundle import imgui
 
+from ..render.camera import VIEWS
 from ..render.shapes import SHAPE_NAMES
 from ..render.style import ColorMap, known_colormap
-from .edit import get_at, params
+from .edit import auto_range, get_at, params
 
 # offered in the colormap combo (any name the cmap package knows works in the file)
 COLORMAPS = ("viridis", "magma", "inferno", "plasma", "cividis", "turbo", "bupu", "ylorrd",
@@ -76,6 +78,14 @@ def keep_unedited(new, old, show) -> tuple[float, ...]:
     what ImGui holds) stay exactly as they were; the edited ones as shown."""
     return tuple(o if np.float32(n) == np.float32(o) else x
                  for n, o, x in zip(new, old, show(new)))
+
+
+def _auto_label(label: str, spec) -> str:
+    """A range widget's label: "(data)" or the percentiles when the range is automatic; the
+    "###" part keeps the widget's id when the label changes (mid-drag it becomes numbers)."""
+    if isinstance(spec, tuple):
+        return f"{label}###{label}"
+    return f"{label} ({'data' if spec is None else spec})###{label}"
 
 
 class Panel:
@@ -141,8 +151,13 @@ class Panel:
         v = self.viewer
         if not imgui.collapsing_header("view", imgui.TreeNodeFlags_.default_open):
             return
+        for i, name in enumerate(VIEWS):  # ParaView's view buttons (keys 1-7)
+            if i:
+                imgui.same_line()
+            if imgui.small_button(name):
+                v.set_view(name)
         for label, what in (("orientation axes (A)", "axes"), ("outline (B)", "outline"),
-                            ("probe on hover (P)", "probe")):
+                            ("legend (L)", "legend"), ("probe on hover (P)", "probe")):
             if imgui.checkbox(label, v.shown(what))[0]:
                 v.toggle(what)
         if v.probe is not None:
@@ -151,10 +166,10 @@ class Panel:
         if cm is None:
             return
         imgui.text(f"colour: {cm.attribute} ({cm.cmap})")
-        lo, hi = cm.range
-        changed, r = self._range("colour range", (lo, hi))
+        changed, r = self._range(_auto_label("colour range", cm.range),
+                                 v.color_map(resolved=True).range)
         if changed:
-            self.viewer.set_color_range(r, merge=self._merge("colour range"))
+            v.set_color_range(r, merge=self._merge("colour range"))
         self._settle("colour range")
         if imgui.button("data range"):
             v.set_color_range(None)
@@ -192,8 +207,7 @@ class Panel:
             changed, value = self._widget(p)
             if changed and p.kind == "attribute":  # a new attribute comes with its data range
                 cm = get_at(self.viewer.style, p.path[:-1])
-                self.viewer.edit(p.path[:-1], ColorMap(cm.cmap, value,
-                                                       self.viewer.value_range(value)))
+                self.viewer.edit(p.path[:-1], ColorMap(cm.cmap, value, auto_range(cm.range)))
             elif changed:
                 self.viewer.edit(p.path, value, merge=self._merge(p.path))
             self._settle(p.path)
@@ -211,8 +225,8 @@ class Panel:
             changed, c = imgui.color_edit4(p.label, list(p.value))
             c = keep_unedited(c, p.value, shown_color)
             return changed and c != tuple(p.value), c
-        if p.kind == "range":
-            return self._range(p.label, p.value)
+        if p.kind == "range":  # an automatic range shows the numbers it resolves to
+            return self._range(_auto_label(p.label, p.value), get_at(v.resolved, p.path))
         if p.kind in ("cmap", "shape", "attribute"):
             items = {"cmap": _colormaps(), "shape": list(SHAPE_NAMES), "attribute": v.color_attributes}[p.kind]
             if p.value not in items:
