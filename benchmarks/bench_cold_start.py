@@ -64,10 +64,14 @@ def run(name: str, cache: Path) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scenarios", nargs="*", default=list(SCENARIOS), choices=list(SCENARIOS))
+    # (checked here: argparse's choices refuse an empty or default list for nargs="*")
+    ap.add_argument("scenarios", nargs="*", help=f"default: all of {', '.join(SCENARIOS)}")
     args = ap.parse_args(argv)
+    bad = [n for n in args.scenarios if n not in SCENARIOS]
+    if bad:
+        ap.error(f"unknown scenario {bad[0]!r}; choose from {', '.join(SCENARIOS)}")
     print("| scenario | cold s | warm s | cold/warm |\n|---|---|---|---|")
-    for name in args.scenarios:
+    for name in args.scenarios or SCENARIOS:
         with tempfile.TemporaryDirectory(prefix="flowkit-cold-") as tmp:
             cold = run(name, Path(tmp))
             warm = run(name, Path(tmp))
