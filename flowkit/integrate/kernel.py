@@ -762,8 +762,9 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
                     long = True
                 else:
                     hs = d * cap
-                    hk *= KINK_GROW
-                    kwait = max(kwait - 1, 0)
+                    if cross:  # (the crossing controller's state, only where it is used)
+                        hk *= KINK_GROW
+                        kwait = max(kwait - 1, 0)
         hit_lim = False
         rem = lim_ind - abs(tau)
         if abs(hs) >= rem:
