@@ -18,6 +18,7 @@ sizes, e.g. for a HiDPI window), so a supersampled picture still gets sharp text
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -72,10 +73,17 @@ def label(name: str, units: dict[str, str] | None) -> str:
 
 
 # -- drawing helpers ----------------------------------------------------------------------------
-def _font(px: float):
+def text_font(px: float):
+    """Pillow's own scalable font at about ``px`` pixels (no system fonts: the same text
+    everywhere); the viewer's overlays use it too."""
+    return _font_at(max(6, round(px)))
+
+
+@functools.cache
+def _font_at(size: int):
     from PIL import ImageFont
 
-    return ImageFont.load_default(size=max(6, round(px)))
+    return ImageFont.load_default(size=size)
 
 
 def _colours(style: Style) -> tuple[tuple, tuple]:
@@ -155,7 +163,7 @@ def legend_image(style: Style, size: tuple[int, int], *, units: dict[str, str] |
     if not maps and tf is None:
         return out, None
     fs = (text_px or max(10.0, min(w, h) / 24)) * scale  # font size, pixels
-    font, small = _font(fs), _font(0.85 * fs)
+    font, small = text_font(fs), text_font(0.85 * fs)
     fill, ink = _colours(style)
     pad, gap = round(0.5 * fs), round(0.45 * fs)
     bar_w, bar_h = round(min(max(9 * fs, 0.22 * w), 0.45 * w)), round(0.8 * fs)
@@ -274,7 +282,7 @@ def annotation_image(size: tuple[int, int], style: Style, *, title: str = "",
     img = Image.new("RGBA", (w, h), (0, 0, 0, 0))
     d = ImageDraw.Draw(img)
     fs = max(10.0, min(w, h) / 24) * scale
-    font, big = _font(fs), _font(1.3 * fs)
+    font, big = text_font(fs), text_font(1.3 * fs)
     fill, ink = _colours(style)
     margin, pad = round(0.02 * min(w, h)), round(0.3 * fs)
     boxes = []

@@ -10,12 +10,13 @@ the scene's size, which the window shows and screenshots save: what is seen is w
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import moderngl
 import numpy as np
-from PIL import Image, ImageDraw, ImageFont
+from PIL import Image, ImageDraw
+
+from ..render.legend import text_font
 
 _VS = """
 #version 330
@@ -142,16 +143,10 @@ class OverlayLayer:
 
 
 # -- images -----------------------------------------------------------------------------------
-@functools.cache
-def font(size: int) -> ImageFont.FreeTypeFont:
-    """Pillow's own scalable font (no system fonts: the same text everywhere)."""
-    return ImageFont.load_default(size=size)
-
-
 def text_image(text: str, size: int = 13, color=(255, 255, 255, 255),
                background=(20, 20, 24, 190), pad: int = 6) -> np.ndarray:
     """``text`` (lines split on newlines) on a translucent box: (H, W, 4) uint8."""
-    f = font(size)
+    f = text_font(size)
     probe = ImageDraw.Draw(Image.new("RGBA", (1, 1)))
     x0, y0, x1, y1 = probe.multiline_textbbox((0, 0), text, font=f, spacing=3)
     img = Image.new("RGBA", (x1 - min(x0, 0) + 2 * pad, y1 - min(y0, 0) + 2 * pad), background)
@@ -174,7 +169,7 @@ def axes_image(view: np.ndarray, size: int = 100, labels=("X", "Y", "Z")) -> np.
     c, arm = s / 2, 0.34 * s
     rot = np.asarray(view, float)[:3, :3]
     order = np.argsort(rot[2])  # view z of each axis: farther (more negative) first
-    f = font(13 * k)
+    f = text_font(13 * k)
     for i in order:
         dx, dy = rot[0, i], -rot[1, i]  # screen y runs down
         tip = (c + arm * dx, c + arm * dy)
