@@ -19,7 +19,7 @@ LOG = logging.getLogger("flowkit.compile")
 DELAY = 2.0
 # qualified name of a kernel -> (what it is, typical cold compile seconds)
 TYPICAL = {
-    "flowkit.integrate.kernel._advance_range": ("the tracing kernel", 33),
+    "flowkit.integrate.kernel._advance_lines": ("the tracing kernel", 12),
     "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 20),
     "flowkit.integrate.pathlines._advance_range": ("the pathline kernel", 15),
     "flowkit.integrate.rosenbrock._advance_range": ("the Rosenbrock kernel", 25),

@@ -161,4 +161,4 @@ def cache_location() -> str:
     """Where numba caches flowkit's kernels in this process (docs/integrator.md says why)."""
     from .integrate import kernel
 
-    return kernel._advance_range._cache._cache_path
+    return kernel._advance_lines._cache._cache_path

@@ -28,7 +28,7 @@ def test_compile_then_a_second_process_finds_everything_cached(tmp_path):
     m = re.search(r"^default: compiled (\d+) functions in ([\d.]+) s", first, re.MULTILINE)
     assert m and int(m[1]) >= 5 and float(m[2]) > 1.0, first
     assert f"cache: {cache}" in first
-    assert list(cache.rglob("kernel._advance_range-*.nbi"))  # the tracing kernel is stored
+    assert list(cache.rglob("kernel._advance_lines-*.nbi"))  # the tracing kernel is stored
     second = _compile(cache)
     assert re.search(r"^default: all from the cache \(", second, re.MULTILINE), second
     assert "compiled 0 functions in 0.0 s" in second

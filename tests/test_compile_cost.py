@@ -43,7 +43,7 @@ def test_default_trace_compiles_one_specialization_of_each_function(tmp_path):
                          timeout=900, check=True).stdout
     res = json.loads(out.strip().splitlines()[-1])
     sigs = res["sigs"]
-    assert len(sigs["_run_line"]) == 1 and len(sigs["_advance_range"]) == 1
+    assert len(sigs["_advance_lines"]) == 1
     many = {n: s for n, s in sigs.items() if len(s) > 1}
     assert not many, f"functions compiled more than once: {many}"
     assert res["lockstep"] == 0  # not compiled for adaptive or cell-aware traces

@@ -130,6 +130,11 @@ def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 
     return K._f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row)
 
 
+@njit
+def _axis_cell(c, inv, x):
+    return lanes._axis_cell(c, inv, x)
+
+
 def test_kernel_locates_a_point_on_a_face_afresh():
     """The scalar kernel keeps its cached cell only while a point is strictly inside it, so a
     point on a face gets the cell a fresh lookup gives (what the lock-step does), not the cell
@@ -140,7 +145,7 @@ def test_kernel_locates_a_point_on_a_face_afresh():
     gx, gy, gz, period, inv, vec = args[5:11]
     # a node the lookup puts in the cell above it (rounding may put a node in the cell below)
     m = next(m for m in range(1, gx.size - 2)
-             if lanes._axis_cell(gx, inv[0], gx[m]) == m)
+             if _axis_cell(gx, inv[0], gx[m]) == m)
     ci, cf, coef, k = np.full(3, -1, np.int64), np.zeros(9), np.zeros((8, 3)), np.zeros((5, 4))
     y, z = gy[7] + 0.3 * (gy[8] - gy[7]), gz[9] + 0.6 * (gz[10] - gz[9])
     inside = gx[m - 1] + 0.5 * (gx[m] - gx[m - 1])

@@ -114,7 +114,7 @@ def test_a_second_jobs_fresh_workers_load_the_shared_cache(tmp_path):
 
     first = job(1, "a.h5")
     assert sum(n for n, _ in first.values()) >= 5 and sum(s for _, s in first.values()) > 1.0
-    assert list(shared.rglob("kernel._advance_range-*.nbi"))
+    assert list(shared.rglob("kernel._advance_lines-*.nbi"))
     second = job(2, "b.h5")
     assert len(second) == 2
     for worker, (n, secs) in second.items():

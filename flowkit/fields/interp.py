@@ -14,13 +14,14 @@ import numpy as np
 from numba import njit
 
 from ..integrate.threads import run_ranges
+from ..jit import inline
 
 INSIDE = 0
 OUTSIDE = 1
 NAN_CELL = 2
 
 
-@njit(cache=True, inline="always")
+@inline
 def locate_axis(c, period, inv, x):
     """Cell index i and local coordinate t in [0, 1] of x on one axis; i = -1 when outside.
 
@@ -61,7 +62,7 @@ def locate_axis(c, period, inv, x):
     return i, min(max(t, 0.0), 1.0)
 
 
-@njit(cache=True, inline="always")
+@inline
 def locate(gx, gy, gz, period, inv, px, py, pz):
     """(i, j, k, tx, ty, tz, inside) of a point."""
     i, tx = locate_axis(gx, period[0], inv[0], px)
@@ -71,7 +72,7 @@ def locate(gx, gy, gz, period, inv, px, py, pz):
     return i, j, k, tx, ty, tz, ok
 
 
-@njit(cache=True, inline="always")
+@inline
 def trilinear_vector(vec, i, j, k, tx, ty, tz):
     """Trilinear vector at local coords of cell (i, j, k); returns (u, v, w, has_nan)."""
     nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
@@ -96,7 +97,7 @@ def trilinear_vector(vec, i, j, k, tx, ty, tz):
     return out0, out1, out2, False
 
 
-@njit(cache=True, inline="always")
+@inline
 def trilinear_scalar(arr, i, j, k, tx, ty, tz):
     """Trilinear scalar at local coords of cell (i, j, k); returns (value, has_nan)."""
     nx, ny, nz = arr.shape[0], arr.shape[1], arr.shape[2]

@@ -1,4 +1,4 @@
-"""The numba integrator: explicit Runge–Kutta from tableau data, one line per prange iteration.
+"""The numba integrator: explicit Runge–Kutta from tableau data, lines shared among threads.
 
 Algorithm (the OpenCL backend reproduces it step for step; docs/integrator.md says more):
 
@@ -33,11 +33,12 @@ import math
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, prange, types
+from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
 from ..fields.interp import locate_axis
+from ..jit import helper, inline
 from .reasons import Reason
 from .stiffness import NONSTIFF_RESET, STIFF_STEPS, dp5_hlambda, stiff_update  # noqa: F401 (CL)
 from .threads import run_ranges
@@ -86,17 +87,7 @@ R_UNDER = int(Reason.STEP_UNDERFLOW)
 R_NAN = int(Reason.NAN_FIELD)
 R_SEED = int(Reason.SEED_OUTSIDE)
 
-# The step loop's helpers.  numba's IR inlining (``inline="always"``) types and lowers a copy
-# of a helper at every call site: with every helper inlined, the kernel took minutes to compile
-# on a fresh machine.  It is kept for the helpers on the per-step path (evaluation, cell moves,
-# dense output, events: as calls they cost about a quarter of a cell-aware step, measured) and the
-# single-caller ones; the others are ``helper``s, compiled once and called.  No NRT: they never
-# allocate, and reference counting of the arrays they take would cost more than their work.
-# numpy's error model: a division by zero gives inf or NaN, which the loop tests for (a zero
-# speed in arc-length mode), instead of an exception path per division.  Constants are passed
-# typed (np.int64(0)): a literal 0 or True argument compiles one more copy per value.
-helper = njit(cache=True, _nrt=False, error_model="numpy", no_cpython_wrapper=True,
-              no_cfunc_wrapper=True)
+# The step loop's helpers: ``inline`` on the per-step path, ``helper`` off it (flowkit/jit.py).
 
 
 # -- cells ----------------------------------------------------------------------------------
@@ -123,7 +114,7 @@ def _prefetch(typingctx, arr, idx):
     return types.void(arr, idx), codegen
 
 
-@njit(cache=True, inline="always")
+@inline
 def _node_index(c, period, inv, x):
     """Cell index of x on a uniform axis by one multiply (clamped; -1 for a non-uniform axis):
     only to choose what to prefetch, so an index one off near a face does no harm."""
@@ -136,7 +127,7 @@ def _node_index(c, period, inv, x):
     return min(max(int(r), 0), n - 2)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _prefetch_cell(vec, gx, gy, gz, period, inv, px, py, pz, last):
     """Prefetch the corners of the cell holding (px, py, pz) on a uniform grid, unless it is
     ``last`` (flat index of the cell's first corner, returned): the cache lines a later
@@ -161,7 +152,7 @@ def _prefetch_cell(vec, gx, gy, gz, period, inv, px, py, pz, last):
     return base
 
 
-@njit(cache=True, inline="always")
+@inline
 def _n_cells(c, period):
     n = c.size
     if period > 0.0 and c[0] + period - c[n - 1] > 0.0:
@@ -169,7 +160,7 @@ def _n_cells(c, period):
     return n - 1
 
 
-@njit(cache=True, inline="always")
+@inline
 def _width(c, period, i):
     n = c.size
     if i < n - 1:
@@ -191,7 +182,7 @@ def _locate_cell(c, period, inv, x):
     return i, c[i], c[i + 1]
 
 
-@njit(cache=True, inline="always")
+@inline
 def _gather(vec, ci, coef):
     """Coefficients of the trilinear polynomial of cell ci; False when a corner is not finite."""
     nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
@@ -254,7 +245,7 @@ def _copy_cell(ci, cf, coef, ci_to, cf_to, coef_to):
             coef_to[m, a] = coef[m, a]
 
 
-@njit(cache=True, inline="always")
+@inline
 def _norm3(u, v, w):
     """|(u, v, w)|: the plain formula, rescaled by the largest component only where the squares
     would overflow or underflow (so normal speeds stay bit-identical to the OpenCL kernel's)."""
@@ -267,7 +258,7 @@ def _norm3(u, v, w):
     return sp
 
 
-@njit(cache=True, inline="always")
+@inline
 def _fc(px, py, pz, param, cf, coef, k, row):
     """Right-hand side from the current cell's polynomial into k[row, 0:4]; returns |v|."""
     tx = (px - cf[0]) * cf[6]
@@ -297,7 +288,7 @@ def _fc(px, py, pz, param, cf, coef, k, row):
 _fc_call = helper(_fc.py_func)  # the same, called: off the per-step path (crossing tries)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row):
     """Right-hand side at p: cell-aware, the current cell's polynomial; otherwise the polynomial
     of the cell holding p, looked up unless p is strictly inside the cached cell.  A point on a
@@ -310,7 +301,7 @@ def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 
     return _fc(px, py, pz, param, cf, coef, k, row)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _move(a, up, c, per, vec, ci, cf, coef):
     """Step the current cell through its face on axis a; 0 ok, 1 left the domain, 2 NaN cell."""
     if up:
@@ -336,7 +327,7 @@ def _move(a, up, c, per, vec, ci, cf, coef):
     return 0 if _gather(vec, ci, coef) else 2
 
 
-@njit(cache=True, inline="always")
+@inline
 def _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef):
     # the axis array chosen at run time: no reference counting here (no NRT in the step loop),
     # and one copy of _move at each call site rather than one per axis
@@ -344,7 +335,7 @@ def _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef):
     return _move(a, up, c, period[a], vec, ci, cf, coef)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _stage_point(ma, k, st, y, hs, yt):
     """yt = y + hs * Σ_m<st ma[st, m] k[m] (position): the three sums advance together over m,
     each adding its terms in the same order as a sum per component would."""
@@ -362,7 +353,7 @@ def _stage_point(ma, k, st, y, hs, yt):
 
 
 # -- dense output -----------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@inline
 def _dense(qd, comp, q, y0, hs, th):
     """y0 + hs * Σ_j Q[comp, j] θ^(j+1), Q the step's dense coefficients (4, QMAX)."""
     acc = 0.0
@@ -371,7 +362,7 @@ def _dense(qd, comp, q, y0, hs, th):
     return y0 + hs * (th * acc)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _root(qd, comp, q, y0, hs, target, sgn, thi):
     """θ in [0, thi] where the dense output of ``comp`` meets ``target``, going from
     sgn * (value - target) < 0 to >= 0: safeguarded Newton from the secant estimate."""
@@ -409,7 +400,7 @@ def _root(qd, comp, q, y0, hs, target, sgn, thi):
 
 
 # -- output ---------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@inline
 def _put(out_p, out_par, out_n, slot, px, py, pz, t, s):
     n = out_n[slot]
     out_p[slot, n, 0] = px
@@ -495,7 +486,7 @@ def _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1):
     return math.sqrt(e5 / 3.0)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax, beta, expo1):
     """Hairer's PI controller with Gustafsson's memory, after an accepted step of hs (h: the
     step the controller had asked for): (next step, errp, errp ** beta).  Shared with the
@@ -528,7 +519,7 @@ def _scaled_rms(fo, y, k, i, j):
     return r
 
 
-@njit(cache=True, inline="always")
+@inline
 def _initial_guess(fo, y, k):
     """First half of Hairer's initial step (Hairer, Nørsett & Wanner I, II.4), on the position:
     (h0, |f(y0)|) from the scaled norms of y0 and f(y0) = k[0].  The caller evaluates the field
@@ -541,7 +532,7 @@ def _initial_guess(fo, y, k):
     return (1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1), d1
 
 
-@njit(cache=True, inline="always")
+@inline
 def _initial_step(fo, y, k, h0, d1, kexp, ok):
     """Second half: the step from the change of f over h0 (k[1] - k[0]); ``ok`` False when the
     second evaluation failed (NaN data)."""
@@ -553,7 +544,7 @@ def _initial_step(fo, y, k, h0, d1, kexp, ok):
     return min(100.0 * h0, h1)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _load_state(sf, si, l, y, k, i_lastrej, beta):
     """A suspended line's step state (written by ``_save_state``): the position and dependent
     variable into y, f(y) into k[0]; returns (parameter, h, errp, errp ** beta, accepted,
@@ -568,7 +559,7 @@ def _load_state(sf, si, l, y, k, i_lastrej, beta):
             si[l, i_lastrej] != 0)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, i_lastrej):
     for a in range(3):
         sf[l, S_Y + a] = y[a]
@@ -584,46 +575,77 @@ def _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, i_lastrej
 
 
 # -- lines ------------------------------------------------------------------------------------
-@njit(cache=True, nogil=True, error_model="numpy")
-def _advance_range(start, stop, active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv,
-                   vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
-    """``advance`` for the slots start..stop-1 (lines ``active[start:stop]``), one after the
-    other; without the GIL, so that threads run ranges side by side (``threads.run_ranges``)."""
-    B = out_p.shape[1]
-    mode = io[P_PASS]
-    k = np.empty((mi[0] + 1, 4))  # the stages, and a spare row (scratch of one line)
-    coef = np.empty((8, 3))  # the cached cell's polynomial
-    cf = np.empty(9)  # its faces and 1 / widths
-    ci = np.empty(3, np.int64)  # its index
-    y = np.empty(4)  # position and dependent parameter
-    yt = np.empty(3)  # a stage's point
-    ys = np.empty(3)  # the point of stage st_stiff (stiffness detection)
-    y1 = np.empty(3)  # the step's end
-    dlo = np.empty(3)  # domain bounds
-    dhi = np.empty(3)
-    qd = np.empty((4, QMAX))  # dense coefficients
-    coef0 = np.empty((8, 3))  # the cell a crossing step started in, restored when it fails
-    cf0 = np.empty(9)
-    ci0 = np.empty(3, np.int64)
-    for n in range(start, stop):
-        if mode != PASS_FINISH:
-            out_n[n] = 0
-        if mode != PASS_FINISH or si[active[n], I_STATUS] != DONE:
-            _run_line(active[n], n, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                      mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B,
-                      mode == PASS_SETUP, k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd,
-                      coef0, cf0, ci0)
+@helper
+def _store(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, hk, n_cross, kfail, kwait,
+           cf, ci):
+    """The line's whole state into its rows, for ``_load_state`` and the cell restore."""
+    _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, I_LASTREJ)
+    sf[l, S_HK] = hk
+    si[l, I_NCROSS], si[l, I_KFAIL], si[l, I_KWAIT] = n_cross, kfail, kwait
+    for a in range(3):
+        sf[l, S_LO + a] = cf[a]
+        sf[l, S_HI + a] = cf[3 + a]
+        si[l, I_CELL + a] = ci[a]
+
+
+@helper
+def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, kexp, fo, io, sf, si,
+           out_p, out_par, out_n, k, coef, cf, ci, y, yt, dlo, dhi):
+    """Start line l at its seed: the first vertex, the initial step, and the state of a line
+    suspended before its first step (``_load_state``); False (line done) when the seed lies
+    outside the domain or in NaN data.  Compiled once and called (once per line)."""
+    C0, C1 = np.int64(0), np.int64(1)  # typed (see helper)
+    param, aware, emit = io[P_PARAM], io[P_AWARE] != 0, io[P_EMIT]
+    d, phase = dirs[l], phases[l]
+    px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
+    inside = math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)
+    for a in range(3):
+        x = seeds[l, a]
+        if period[a] == 0.0 and not (dlo[a] <= x <= dhi[a]):
+            inside = False
+    sp = np.nan
+    if inside:
+        _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+        sp = _fc(px, py, pz, param, cf, coef, k, C0)
+    if not (inside and math.isfinite(sp)):
+        si[l, I_STATUS] = DONE
+        si[l, I_REASON] = R_SEED
+        return False
+    y[0], y[1], y[2], y[3] = px, py, pz, 0.0
+    h = fo[O_H0]
+    if h <= 0.0 and sp > 0.0:
+        h0, d1 = _initial_guess(fo, y, k)
+        for a in range(3):
+            yt[a] = y[a] + d * h0 * k[0, a]
+        _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, C1)
+        h = _initial_step(fo, y, k, h0, d1, kexp, np.bool_(True))
+    elif h <= 0.0:
+        h = 1.0
+    h = d * min(h, fo[O_HMAX])
+    zero = np.int64(0)
+    _store(sf, si, l, y, k, 0.0, h, 1e-4, zero, zero, np.bool_(False), abs(h), zero, zero, zero,
+           cf, ci)
+    si[l, I_PEND] = si[l, I_FINAL] = 0
+    si[l, I_STATUS] = RUNNING
+    sf[l, S_LAST_S] = -np.inf
+    si[l, I_M] = 0
+    if emit == EMIT_STEPS or (emit == EMIT_SPACING and phase == 0.0):
+        _put(out_p, out_par, out_n, slot, px, py, pz, 0.0, 0.0)
+        sf[l, S_LAST_S] = 0.0
+        si[l, I_M] = 1 if emit == EMIT_SPACING else 0
+    return True
 
 
 # Compiled without NRT, so without reference counting: every array here is the caller's.  With
 # NRT, each array handed to an inlined helper in the step loop cost an atomic increment and
 # decrement, a fifth of a plain rk4 step's time (measured); NRT cannot allocate, hence the
 # scratch arrays from _advance_range
-@njit(cache=True, _nrt=False, error_model="numpy", no_cpython_wrapper=True,
-      no_cfunc_wrapper=True)
-def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec, mc, ma, mb,
-              me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n, B, setup_only,
-              k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd, coef0, cf0, ci0):
+@njit(cache=True, nogil=True, _nrt=False, error_model="numpy")
+def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv,
+                   vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n,
+                   k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd, coef0, cf0, ci0):
+    """The lines ``active[start:stop]`` one after the other (slots start..stop-1), without the
+    GIL, so that threads run ranges side by side (``threads.run_ranges``)."""
     S, n_err, fs, adaptive, kexp, has_e2 = mi[0], mi[1], mi[2], mi[3] != 0, mi[4], mi[5] != 0
     C0, C1, C2, C3 = np.int64(0), np.int64(1), np.int64(2), np.int64(3)  # typed (see helper)
     q = mp.shape[1]
@@ -639,59 +661,29 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
     r_dep = R_MAXLEN if param == 0 else R_MAXTIME
     expo1 = 1.0 / kexp - 0.75 * beta
     n_step = max(n_err, fs + 1)  # the stages of every step (the last one: f(y1))
-    d = dirs[l]
-    spacing, phase = spacings[l], phases[l]
-    if si[l, I_STATUS] == DONE:  # only a pending emission left
-        _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
-        return
-    ci[0] = ci[1] = ci[2] = -1
-    dlo[0], dlo[1], dlo[2] = gx[0], gy[0], gz[0]
-    dhi[0], dhi[1], dhi[2] = gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]
+    B = out_p.shape[1]
+    mode = io[P_PASS]
+    for slot in range(start, stop):
+        l = active[slot]
+        if mode != PASS_FINISH:
+            out_n[slot] = 0
+        elif si[l, I_STATUS] == DONE:
+            continue
+        setup_only = mode == PASS_SETUP
+        d = dirs[l]
+        spacing, phase = spacings[l], phases[l]
+        if si[l, I_STATUS] == DONE:  # only a pending emission left
+            _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
+            continue
+        ci[0] = ci[1] = ci[2] = -1
+        dlo[0], dlo[1], dlo[2] = gx[0], gy[0], gz[0]
+        dhi[0], dhi[1], dhi[2] = gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]
 
-    if si[l, I_STATUS] == NEW:
-        px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
-        inside = math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)
-        for a in range(3):
-            x = seeds[l, a]
-            if period[a] == 0.0 and not (dlo[a] <= x <= dhi[a]):
-                inside = False
-        sp = np.nan
-        if inside:
-            _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
-            sp = _fc(px, py, pz, param, cf, coef, k, C0)
-        if not (inside and math.isfinite(sp)):
-            si[l, I_STATUS] = DONE
-            si[l, I_REASON] = R_SEED
-            return
-        y[0], y[1], y[2], y[3] = px, py, pz, 0.0
-        tau = 0.0
-        n_acc = 0
-        n_rej = 0
-        last_rej = False
-        errp = 1e-4
-        errpb = errp ** beta
-        h = fo[O_H0]
-        if h <= 0.0 and sp > 0.0:
-            h0, d1 = _initial_guess(fo, y, k)
-            for a in range(3):
-                yt[a] = y[a] + d * h0 * k[0, a]
-            _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, C1)
-            h = _initial_step(fo, y, k, h0, d1, kexp, np.bool_(True))
-        elif h <= 0.0:
-            h = 1.0
-        h = d * min(h, hmax)
-        hk = abs(h)
-        n_cross = 0
-        kfail = 0
-        kwait = 0
-        si[l, I_STATUS] = RUNNING
-        sf[l, S_LAST_S] = -np.inf
-        si[l, I_M] = 0
-        if emit == EMIT_STEPS or (emit == EMIT_SPACING and phase == 0.0):
-            _put(out_p, out_par, out_n, slot, px, py, pz, 0.0, 0.0)
-            sf[l, S_LAST_S] = 0.0
-            si[l, I_M] = 1 if emit == EMIT_SPACING else 0
-    else:
+        if si[l, I_STATUS] == NEW and not _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv,
+                                                  vec, kexp, fo, io, sf, si, out_p, out_par, out_n,
+                                                  k, coef, cf, ci, y, yt, dlo, dhi):
+            continue
+        # (a new line starts from the state _start wrote, as a suspended line resumes)
         tau, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, I_LASTREJ, beta)
         hk = sf[l, S_HK]
         n_cross, kfail, kwait = si[l, I_NCROSS], si[l, I_KFAIL], si[l, I_KWAIT]
@@ -705,356 +697,366 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
             cf[8] = 1.0 / _width(gz, period[2], ci[2])
             _gather(vec, ci, coef)
         if not _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B):
-            return
+            continue
 
-    reason = -1
-    suspended = setup_only  # (lanes.py's setup pass: the line stops before its first step)
-    while not suspended:
-        if out_n[slot] >= B:
-            suspended = True
-            break
-        speed = k[0, 3] if param == 0 else 1.0 / k[0, 3]
-        if not (speed >= stag) or speed == 0.0:
-            reason = R_STAG
-            break
-        if n_acc + n_rej >= max_steps:
-            reason = R_MAXSTEPS
-            break
-        # where the line stands: on a face moving outwards -> next cell, or out of the domain
-        stop = False
-        for a in range(3):
-            mv = d * k[0, a]
-            if aware:
-                up = y[a] >= cf[3 + a] and mv > 0.0
-                if up or (y[a] <= cf[a] and mv < 0.0):
-                    y[a] = cf[3 + a] if up else cf[a]
-                    res = _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef)
-                    if res != 0:
-                        reason = R_OUT if res == 1 else R_NAN
-                        stop = True
-                        break
-                    _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
-                else:  # rounding may leave the point a hair outside its cell: put it back
-                    y[a] = min(max(y[a], cf[a]), cf[3 + a])
-            elif period[a] == 0.0 and (
-                    (y[a] <= dlo[a] and mv < 0.0) or (y[a] >= dhi[a] and mv > 0.0)):
-                reason = R_OUT
-                stop = True
+        reason = -1
+        suspended = setup_only  # (lanes.py's setup pass: the line stops before its first step)
+        while not suspended:
+            if out_n[slot] >= B:
+                suspended = True
                 break
-        if stop:
-            break
-
-        # step size: controller, cell cap (or a step across faces), parameter limit
-        hs = h
-        long = False
-        t_exit = np.inf
-        if aware:  # (fixed steps too: their stages would extend the cell's polynomial far out)
+            speed = k[0, 3] if param == 0 else 1.0 / k[0, 3]
+            if not (speed >= stag) or speed == 0.0:
+                reason = R_STAG
+                break
+            if n_acc + n_rej >= max_steps:
+                reason = R_MAXSTEPS
+                break
+            # where the line stands: on a face moving outwards -> next cell, or out of the domain
+            stop = False
             for a in range(3):
                 mv = d * k[0, a]
-                if mv > 0.0:
-                    t_exit = min(t_exit, (cf[3 + a] - y[a]) / mv)
-                elif mv < 0.0:
-                    t_exit = min(t_exit, (y[a] - cf[a]) / -mv)
-            cap = cellfac * t_exit
-            if cap > 0.0 and abs(hs) > cap:
-                if cross and kwait == 0 and hk > KINK_CELLS * cap:
-                    hs = d * min(abs(hs), hk)
-                    long = True
-                else:
-                    hs = d * cap
-                    if cross:  # (the crossing controller's state, only where it is used)
-                        hk *= KINK_GROW
-                        kwait = max(kwait - 1, 0)
-        hit_lim = False
-        rem = lim_ind - abs(tau)
-        if abs(hs) >= rem:
-            hs = d * rem
-            hit_lim = True
-        # fetch the cells the step is headed for (predicted along k0) now, so that their memory
-        # latency overlaps the arithmetic instead of stalling a dependent chain: cell-aware, the
-        # end's (gathered at the face); plain, each stage's (a step spans cells, each stage
-        # gathers its own)
-        inc = aware and not long  # every stage from the cell the step starts in
-        if long:
-            _copy_cell(ci, cf, coef, ci0, cf0, coef0)
-        if inc:
-            _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + hs * k[0, 0],
-                           y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], np.int64(-1))
-        else:
-            last = np.int64(-1)
-            for st in range(1, n_step):
-                if mc[st] != mc[st - 1]:
-                    ch = mc[st] * hs
-                    last = _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + ch * k[0, 0],
-                                          y[1] + ch * k[0, 1], y[2] + ch * k[0, 2], last)
+                if aware:
+                    up = y[a] >= cf[3 + a] and mv > 0.0
+                    if up or (y[a] <= cf[a] and mv < 0.0):
+                        y[a] = cf[3 + a] if up else cf[a]
+                        res = _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef)
+                        if res != 0:
+                            reason = R_OUT if res == 1 else R_NAN
+                            stop = True
+                            break
+                        _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
+                    else:  # rounding may leave the point a hair outside its cell: put it back
+                        y[a] = min(max(y[a], cf[a]), cf[3 + a])
+                elif period[a] == 0.0 and (
+                        (y[a] <= dlo[a] and mv < 0.0) or (y[a] >= dhi[a] and mv > 0.0)):
+                    reason = R_OUT
+                    stop = True
+                    break
+            if stop:
+                break
 
-        # stages
-        for st in range(1, n_err):
-            _stage_point(ma, k, st, y, hs, yt)
-            if st == st_stiff:
-                ys[0], ys[1], ys[2] = yt[0], yt[1], yt[2]
-            if inc:
-                _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
-            else:
-                _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
-        y1x = y[0]
-        y1y = y[1]
-        y1z = y[2]
-        err = 0.0
-        finite = True
-        e5 = 0.0
-        e3 = 0.0
-        dep1 = 0.0
-        for a in range(4):
-            acc = 0.0
-            for m in range(n_err):
-                acc += mb[m] * k[m, a]
-            v1 = y[a] + hs * acc
-            if not math.isfinite(v1):
-                finite = False
-            if a == 0:
-                y1x = v1
-            elif a == 1:
-                y1y = v1
-            elif a == 2:
-                y1z = v1
-            else:
-                dep1 = v1
-            if adaptive and a < 3:
-                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(v1))
-                ea = 0.0
-                for m in range(n_err):
-                    ea += me[m] * k[m, a]
-                e5 += (ea / sc) ** 2
-                if has_e2:  # (e3 stays 0 without a second estimate: me2 is all zeros then)
-                    eb = 0.0
-                    for m in range(n_err):
-                        eb += me2[m] * k[m, a]
-                    e3 += (eb / sc) ** 2
-        y1[0], y1[1], y1[2] = y1x, y1y, y1z
-        if adaptive:
-            if has_e2:  # Hairer's DOP853 estimate: |e5|^2 / sqrt(|e5|^2 + 0.01 |e3|^2)
-                den = e5 + 0.01 * e3
-                err = 0.0 if den == 0.0 else abs(hs) * e5 / math.sqrt(den * 3.0)
-            else:
-                err = abs(hs) * math.sqrt(e5 / 3.0)
-            if finite and not (e5 + e3 > 1e-250 and e5 + e3 < 1e250):
-                err = _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1)
-            if not math.isfinite(err):
-                finite = False
-        if finite and not (adaptive and err > 1.0):  # the remaining stages up to f(y1)
-            for st in range(n_err, fs + 1):
-                _stage_point(ma, k, st, y, hs, yt)
-                _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef,
-                   k, st)
-            if long:
-                # the kink bound: the field at y1 against the start cell's polynomial there,
-                # times the time past the first face, bounds what the faces' kinks moved y1
-                # (the embedded estimate, blind to kinks, sees a fraction of it)
-                t_past = abs(hs) - t_exit
-                _fc_call(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
-                ek = 0.0
+            # step size: controller, cell cap (or a step across faces), parameter limit
+            hs = h
+            long = False
+            t_exit = np.inf
+            if aware:  # (fixed steps too: their stages would extend the cell's polynomial far out)
                 for a in range(3):
-                    sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
-                    ek += ((k[S, a] - k[fs, a]) * t_past / sc) ** 2
-                ek = math.sqrt(ek / 3.0)
-                if math.isfinite(ek):
-                    err = max(err, ek)
-                else:
-                    finite = False
-        if long and not (finite and err <= 1.0):
-            # the kink at the faces costs more than the tolerance (or NaN data lies beyond, y1
-            # included: f(y1) entered the kink bound):
-            # back to the cell the step started in, to end this step on its face
-            _copy_cell(ci0, cf0, coef0, ci, cf, coef)
-            n_rej += 1
-            hk = abs(hs) * (max(KINK_SHRINK_MIN, safety / math.sqrt(err)) if finite
-                            else KINK_SHRINK_MIN)
-            kfail = min(kfail + 1, 10)
-            kwait = (1 << (2 * kfail - 2)) - 1
-            continue
-        if not finite:
-            # a stage met NaN data (or a zero speed in arc-length mode): retry shorter
-            n_rej += 1
-            h = 0.25 * hs
-            last_rej = True
-            if abs(h) < hmin:
-                reason = R_NAN
-                break
-            continue
-        if adaptive and err > 1.0:
-            n_rej += 1
-            h = hs * max(facmin, safety * err ** (-expo1))
-            last_rej = True
-            if abs(h) < hmin:
-                reason = R_UNDER
-                break
-            continue
-
-        # accepted
-        if not math.isfinite(k[fs, 0] + k[fs, 1] + k[fs, 2] + k[fs, 3]):
-            n_rej += 1  # y1 itself lies in a NaN cell
-            h = 0.25 * hs
-            last_rej = True
-            if abs(h) < hmin:
-                reason = R_NAN
-                break
-            continue
-        if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
-            si[l, I_STIFF] = stiff_update(si[l, I_STIFF], dp5_hlambda(hs, k, ys, y1))
-        if adaptive:
-            hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin,
-                                            facmax, beta, expo1)
-        else:
-            hnext = h
-        last_rej = False
-        hnext = d * min(abs(hnext), hmax)
-
-        # events inside the step, on the dense output
-        ev = EV_NONE
-        ev_axis = np.int64(-1)
-        ev_face = 0.0
-        need_face = False
-        for a in range(3):
-            v1 = y1x if a == 0 else (y1y if a == 1 else y1z)
+                    mv = d * k[0, a]
+                    if mv > 0.0:
+                        t_exit = min(t_exit, (cf[3 + a] - y[a]) / mv)
+                    elif mv < 0.0:
+                        t_exit = min(t_exit, (y[a] - cf[a]) / -mv)
+                cap = cellfac * t_exit
+                if cap > 0.0 and abs(hs) > cap:
+                    if cross and kwait == 0 and hk > KINK_CELLS * cap:
+                        hs = d * min(abs(hs), hk)
+                        long = True
+                    else:
+                        hs = d * cap
+                        if cross:  # (the crossing controller's state, only where it is used)
+                            hk *= KINK_GROW
+                            kwait = max(kwait - 1, 0)
+            hit_lim = False
+            rem = lim_ind - abs(tau)
+            if abs(hs) >= rem:
+                hs = d * rem
+                hit_lim = True
+            # fetch the cells the step is headed for (predicted along k0) now, so that their memory
+            # latency overlaps the arithmetic instead of stalling a dependent chain: cell-aware, the
+            # end's (gathered at the face); plain, each stage's (a step spans cells, each stage
+            # gathers its own)
+            inc = aware and not long  # every stage from the cell the step starts in
+            if long:
+                _copy_cell(ci, cf, coef, ci0, cf0, coef0)
             if inc:
-                if v1 < cf[a] or v1 > cf[3 + a]:
-                    need_face = True
-            elif period[a] == 0.0 and (v1 < dlo[a] or v1 > dhi[a]):
-                need_face = True
-        need_dep = abs(dep1) >= lim_dep
-        if need_face or need_dep or emit == EMIT_SPACING:
-            for st in range(fs + 1, S):  # stages only the dense output uses
+                _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + hs * k[0, 0],
+                               y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], np.int64(-1))
+            else:
+                last = np.int64(-1)
+                for st in range(1, n_step):
+                    if mc[st] != mc[st - 1]:
+                        ch = mc[st] * hs
+                        last = _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + ch * k[0, 0],
+                                              y[1] + ch * k[0, 1], y[2] + ch * k[0, 2], last)
+
+            # stages
+            for st in range(1, n_err):
                 _stage_point(ma, k, st, y, hs, yt)
-                _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+                if st == st_stiff:
+                    ys[0], ys[1], ys[2] = yt[0], yt[1], yt[2]
+                if inc:
+                    _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
+                else:
+                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+            y1x = y[0]
+            y1y = y[1]
+            y1z = y[2]
+            err = 0.0
+            finite = True
+            e5 = 0.0
+            e3 = 0.0
+            dep1 = 0.0
             for a in range(4):
-                for j in range(q):
-                    acc = 0.0
-                    for m in range(S):
-                        acc += mp[m, j] * k[m, a]
-                    qd[a, j] = acc
-            if emit == EMIT_SPACING:  # kept with the line: emission may continue next launch
-                for a in range(4):
-                    for j in range(q):
-                        sf[l, S_Q + a * QMAX + j] = qd[a, j]
-        th = 1.0
-        if need_face:
+                acc = 0.0
+                for m in range(n_err):
+                    acc += mb[m] * k[m, a]
+                v1 = y[a] + hs * acc
+                if not math.isfinite(v1):
+                    finite = False
+                if a == 0:
+                    y1x = v1
+                elif a == 1:
+                    y1y = v1
+                elif a == 2:
+                    y1z = v1
+                else:
+                    dep1 = v1
+                if adaptive and a < 3:
+                    sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(v1))
+                    ea = 0.0
+                    for m in range(n_err):
+                        ea += me[m] * k[m, a]
+                    e5 += (ea / sc) ** 2
+                    if has_e2:  # (e3 stays 0 without a second estimate: me2 is all zeros then)
+                        eb = 0.0
+                        for m in range(n_err):
+                            eb += me2[m] * k[m, a]
+                        e3 += (eb / sc) ** 2
+            y1[0], y1[1], y1[2] = y1x, y1y, y1z
+            if adaptive:
+                if has_e2:  # Hairer's DOP853 estimate: |e5|^2 / sqrt(|e5|^2 + 0.01 |e3|^2)
+                    den = e5 + 0.01 * e3
+                    err = 0.0 if den == 0.0 else abs(hs) * e5 / math.sqrt(den * 3.0)
+                else:
+                    err = abs(hs) * math.sqrt(e5 / 3.0)
+                if finite and not (e5 + e3 > 1e-250 and e5 + e3 < 1e250):
+                    err = _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1)
+                if not math.isfinite(err):
+                    finite = False
+            if finite and not (adaptive and err > 1.0):  # the remaining stages up to f(y1)
+                for st in range(n_err, fs + 1):
+                    _stage_point(ma, k, st, y, hs, yt)
+                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef,
+                       k, st)
+                if long:
+                    # the kink bound: the field at y1 against the start cell's polynomial there,
+                    # times the time past the first face, bounds what the faces' kinks moved y1
+                    # (the embedded estimate, blind to kinks, sees a fraction of it)
+                    t_past = abs(hs) - t_exit
+                    _fc_call(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
+                    ek = 0.0
+                    for a in range(3):
+                        sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
+                        ek += ((k[S, a] - k[fs, a]) * t_past / sc) ** 2
+                    ek = math.sqrt(ek / 3.0)
+                    if math.isfinite(ek):
+                        err = max(err, ek)
+                    else:
+                        finite = False
+            if long and not (finite and err <= 1.0):
+                # the kink at the faces costs more than the tolerance (or NaN data lies beyond, y1
+                # included: f(y1) entered the kink bound):
+                # back to the cell the step started in, to end this step on its face
+                _copy_cell(ci0, cf0, coef0, ci, cf, coef)
+                n_rej += 1
+                hk = abs(hs) * (max(KINK_SHRINK_MIN, safety / math.sqrt(err)) if finite
+                                else KINK_SHRINK_MIN)
+                kfail = min(kfail + 1, 10)
+                kwait = (1 << (2 * kfail - 2)) - 1
+                continue
+            if not finite:
+                # a stage met NaN data (or a zero speed in arc-length mode): retry shorter
+                n_rej += 1
+                h = 0.25 * hs
+                last_rej = True
+                if abs(h) < hmin:
+                    reason = R_NAN
+                    break
+                continue
+            if adaptive and err > 1.0:
+                n_rej += 1
+                h = hs * max(facmin, safety * err ** (-expo1))
+                last_rej = True
+                if abs(h) < hmin:
+                    reason = R_UNDER
+                    break
+                continue
+
+            # accepted
+            if not math.isfinite(k[fs, 0] + k[fs, 1] + k[fs, 2] + k[fs, 3]):
+                n_rej += 1  # y1 itself lies in a NaN cell
+                h = 0.25 * hs
+                last_rej = True
+                if abs(h) < hmin:
+                    reason = R_NAN
+                    break
+                continue
+            if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
+                si[l, I_STIFF] = stiff_update(si[l, I_STIFF], dp5_hlambda(hs, k, ys, y1))
+            if adaptive:
+                hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin,
+                                                facmax, beta, expo1)
+            else:
+                hnext = h
+            last_rej = False
+            hnext = d * min(abs(hnext), hmax)
+
+            # events inside the step, on the dense output
+            ev = EV_NONE
+            ev_axis = np.int64(-1)
+            ev_face = 0.0
+            need_face = False
             for a in range(3):
                 v1 = y1x if a == 0 else (y1y if a == 1 else y1z)
                 if inc:
-                    lo_a, hi_a = cf[a], cf[3 + a]
-                elif period[a] == 0.0:
-                    lo_a, hi_a = dlo[a], dhi[a]
-                else:
-                    continue
-                if v1 < lo_a:
-                    tha = _root(qd, a, q, y[a], hs, lo_a, -1.0, 1.0)
-                    face = lo_a
-                elif v1 > hi_a:
-                    tha = _root(qd, a, q, y[a], hs, hi_a, 1.0, 1.0)
-                    face = hi_a
-                else:
-                    continue
-                if tha < th or ev == EV_NONE:
-                    th = tha
-                    ev_axis = a
-                    ev_face = face
-                    ev = EV_FACE
-        if need_dep:
-            thd = _root(qd, C3, q, y[3], hs, d * lim_dep, d, 1.0)
-            if ev == EV_NONE or thd < th:
-                th = thd
-                ev = EV_DEPLIM
-        if ev == EV_FACE and not inc:
-            ev = EV_BOUNDARY
-        # commit the step
-        n_acc += 1
-        tau0 = tau
-        if emit == EMIT_SPACING:
-            for a in range(4):
-                sf[l, S_Y0 + a] = y[a]
-            sf[l, S_TAU0] = tau
-            sf[l, S_HS] = hs
-            sf[l, S_TH] = th
-        if ev == EV_NONE:
-            y[0], y[1], y[2], y[3] = y1x, y1y, y1z, dep1
-            tau = d * lim_ind if hit_lim else tau + hs
-            for a in range(4):
-                k[0, a] = k[fs, a]
-            if long:  # the line's cell is now the one y1 lies in
-                n_cross += 1
-                kfail = 0
-                hk = abs(hs) * (facmax if err == 0.0 else min(facmax, safety / math.sqrt(err)))
-                if not (cf[0] <= y[0] <= cf[3] and cf[1] <= y[1] <= cf[4]
-                        and cf[2] <= y[2] <= cf[5]):
-                    # (k0 = f(y1) came from the cell holding y1 already, or from its neighbour
-                    # on a shared face: the same value)
-                    _relocate(gx, gy, gz, period, inv, vec, y[0], y[1], y[2], ci, cf, coef)
-        else:
-            ynew0 = _dense(qd, C0, q, y[0], hs, th)
-            ynew1 = _dense(qd, C1, q, y[1], hs, th)
-            ynew2 = _dense(qd, C2, q, y[2], hs, th)
-            ydep = d * lim_dep if ev == EV_DEPLIM else _dense(qd, C3, q, y[3], hs, th)
-            y[0], y[1], y[2], y[3] = ynew0, ynew1, ynew2, ydep
-            if ev == EV_FACE or ev == EV_BOUNDARY:
-                y[ev_axis] = ev_face
-            tau = tau + th * hs
-            hit_lim = False
-            if ev == EV_FACE:
-                # through the face (whatever the velocity there says); start afresh in the new cell
-                res = _move_axis(ev_axis, ev_face == cf[3 + ev_axis], gx, gy, gz, period, vec, ci, cf,
-                                 coef)
-                if res == 1:
-                    ev = EV_BOUNDARY
-                elif res == 2:
-                    reason = R_NAN
-                else:
-                    _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
-        if ev == EV_BOUNDARY:
-            reason = R_OUT
-        elif ev == EV_DEPLIM:
-            reason = r_dep
-        elif hit_lim:
-            reason = r_ind
-        h = hnext
-        if emit == EMIT_STEPS:
-            if th * hs != 0.0 or tau0 != tau:
-                t_out = tau if param == 0 else y[3]
-                s_out = y[3] if param == 0 else tau
-                _put(out_p, out_par, out_n, slot, y[0], y[1], y[2], t_out, s_out)
-        elif emit == EMIT_SPACING:
-            si[l, I_PEND] = 1
-            sf[l, S_DEP] = y[3]
-            sf[l, S_TAU] = tau
-            for a in range(3):
-                sf[l, S_Y + a] = y[a]
-            if not _emit_pending(l, slot, sf, si, d, param, q, spacing, phase,
-                                 out_p, out_par, out_n, B):
-                if reason >= 0:
-                    si[l, I_FINAL] = 1
-                    si[l, I_REASON] = reason
-                    si[l, I_STATUS] = DONE
-                    reason = -2  # done, final vertex still pending
-                suspended = True
+                    if v1 < cf[a] or v1 > cf[3 + a]:
+                        need_face = True
+                elif period[a] == 0.0 and (v1 < dlo[a] or v1 > dhi[a]):
+                    need_face = True
+            need_dep = abs(dep1) >= lim_dep
+            if need_face or need_dep or emit == EMIT_SPACING:
+                for st in range(fs + 1, S):  # stages only the dense output uses
+                    _stage_point(ma, k, st, y, hs, yt)
+                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+                for a in range(4):
+                    for j in range(q):
+                        acc = 0.0
+                        for m in range(S):
+                            acc += mp[m, j] * k[m, a]
+                        qd[a, j] = acc
+                if emit == EMIT_SPACING:  # kept with the line: emission may continue next launch
+                    for a in range(4):
+                        for j in range(q):
+                            sf[l, S_Q + a * QMAX + j] = qd[a, j]
+            th = 1.0
+            if need_face:
+                for a in range(3):
+                    v1 = y1x if a == 0 else (y1y if a == 1 else y1z)
+                    if inc:
+                        lo_a, hi_a = cf[a], cf[3 + a]
+                    elif period[a] == 0.0:
+                        lo_a, hi_a = dlo[a], dhi[a]
+                    else:
+                        continue
+                    if v1 < lo_a:
+                        tha = _root(qd, a, q, y[a], hs, lo_a, -1.0, 1.0)
+                        face = lo_a
+                    elif v1 > hi_a:
+                        tha = _root(qd, a, q, y[a], hs, hi_a, 1.0, 1.0)
+                        face = hi_a
+                    else:
+                        continue
+                    if tha < th or ev == EV_NONE:
+                        th = tha
+                        ev_axis = a
+                        ev_face = face
+                        ev = EV_FACE
+            if need_dep:
+                thd = _root(qd, C3, q, y[3], hs, d * lim_dep, d, 1.0)
+                if ev == EV_NONE or thd < th:
+                    th = thd
+                    ev = EV_DEPLIM
+            if ev == EV_FACE and not inc:
+                ev = EV_BOUNDARY
+            # commit the step
+            n_acc += 1
+            tau0 = tau
+            if emit == EMIT_SPACING:
+                for a in range(4):
+                    sf[l, S_Y0 + a] = y[a]
+                sf[l, S_TAU0] = tau
+                sf[l, S_HS] = hs
+                sf[l, S_TH] = th
+            if ev == EV_NONE:
+                y[0], y[1], y[2], y[3] = y1x, y1y, y1z, dep1
+                tau = d * lim_ind if hit_lim else tau + hs
+                for a in range(4):
+                    k[0, a] = k[fs, a]
+                if long:  # the line's cell is now the one y1 lies in
+                    n_cross += 1
+                    kfail = 0
+                    hk = abs(hs) * (facmax if err == 0.0 else min(facmax, safety / math.sqrt(err)))
+                    if not (cf[0] <= y[0] <= cf[3] and cf[1] <= y[1] <= cf[4]
+                            and cf[2] <= y[2] <= cf[5]):
+                        # (k0 = f(y1) came from the cell holding y1 already, or from its neighbour
+                        # on a shared face: the same value)
+                        _relocate(gx, gy, gz, period, inv, vec, y[0], y[1], y[2], ci, cf, coef)
+            else:
+                ynew0 = _dense(qd, C0, q, y[0], hs, th)
+                ynew1 = _dense(qd, C1, q, y[1], hs, th)
+                ynew2 = _dense(qd, C2, q, y[2], hs, th)
+                ydep = d * lim_dep if ev == EV_DEPLIM else _dense(qd, C3, q, y[3], hs, th)
+                y[0], y[1], y[2], y[3] = ynew0, ynew1, ynew2, ydep
+                if ev == EV_FACE or ev == EV_BOUNDARY:
+                    y[ev_axis] = ev_face
+                tau = tau + th * hs
+                hit_lim = False
+                if ev == EV_FACE:
+                    # through the face (whatever the velocity there says); start afresh in the new cell
+                    res = _move_axis(ev_axis, ev_face == cf[3 + ev_axis], gx, gy, gz, period, vec, ci, cf,
+                                     coef)
+                    if res == 1:
+                        ev = EV_BOUNDARY
+                    elif res == 2:
+                        reason = R_NAN
+                    else:
+                        _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
+            if ev == EV_BOUNDARY:
+                reason = R_OUT
+            elif ev == EV_DEPLIM:
+                reason = r_dep
+            elif hit_lim:
+                reason = r_ind
+            h = hnext
+            if emit == EMIT_STEPS:
+                if th * hs != 0.0 or tau0 != tau:
+                    t_out = tau if param == 0 else y[3]
+                    s_out = y[3] if param == 0 else tau
+                    _put(out_p, out_par, out_n, slot, y[0], y[1], y[2], t_out, s_out)
+            elif emit == EMIT_SPACING:
+                si[l, I_PEND] = 1
+                sf[l, S_DEP] = y[3]
+                sf[l, S_TAU] = tau
+                for a in range(3):
+                    sf[l, S_Y + a] = y[a]
+                if not _emit_pending(l, slot, sf, si, d, param, q, spacing, phase,
+                                     out_p, out_par, out_n, B):
+                    if reason >= 0:
+                        si[l, I_FINAL] = 1
+                        si[l, I_REASON] = reason
+                        si[l, I_STATUS] = DONE
+                        reason = -2  # done, final vertex still pending
+                    suspended = True
+                    break
+            if reason >= 0:
                 break
-        if reason >= 0:
-            break
 
-    # save the state
-    _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, I_LASTREJ)
-    sf[l, S_HK] = hk
-    si[l, I_NCROSS], si[l, I_KFAIL], si[l, I_KWAIT] = n_cross, kfail, kwait
-    for a in range(3):
-        sf[l, S_LO + a] = cf[a]
-        sf[l, S_HI + a] = cf[3 + a]
-        si[l, I_CELL + a] = ci[a]
-    if suspended:
-        return
-    si[l, I_STATUS] = DONE
-    si[l, I_REASON] = reason
-    if emit != EMIT_STEPS:
-        si[l, I_FINAL] = 1
-        _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
+        # save the state
+        _store(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, hk, n_cross, kfail, kwait,
+               cf, ci)
+        if suspended:
+            continue
+        si[l, I_STATUS] = DONE
+        si[l, I_REASON] = reason
+        if emit != EMIT_STEPS:
+            si[l, I_FINAL] = 1
+            _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
+
+
+def _scratch(n_rows):
+    """The step loop's scratch arrays (one line's worth, reused by the next line of a range)."""
+    return (np.empty((n_rows, 4)),  # k: the stages, and a spare row
+            np.empty((8, 3)), np.empty(9), np.empty(3, np.int64),  # the cached cell: polynomial,
+            np.empty(4), np.empty(3), np.empty(3), np.empty(3),  # faces, index; y, yt, ys, y1
+            np.empty(3), np.empty(3),  # domain bounds
+            np.empty((4, QMAX)),  # dense coefficients
+            np.empty((8, 3)), np.empty(9), np.empty(3, np.int64))  # a crossing step's start cell
+
+
+def _advance_range(start, stop, *args):
+    """``_advance_lines`` with scratch arrays of its own (one set per range)."""
+    _advance_lines(start, stop, *args, *_scratch(int(args[17][0]) + 1))
 
 
 def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
@@ -1071,23 +1073,20 @@ def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
                out_n)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def pack(active, out_p, out_par, out_n, pts, t, s, owner):
     """Copy the vertices of one pass (``out_n[n]`` of line ``active[n]`` in row n of the pass
     buffers) into the flat arrays ``pts``/``t``/``s``/``owner``, line after line in the order
-    of ``active``."""
-    first = np.empty(active.size, np.int64)
+    of ``active``.  A sequential copy: memory-bound, it gains little from threads, and a
+    parallel loop costs a second more to compile on a fresh machine."""
     r = 0
     for n in range(active.size):
-        first[n] = r
-        r += out_n[n]
-    for n in prange(active.size):
-        r0 = first[n]
         line = active[n]
         for m in range(out_n[n]):
-            pts[r0 + m, 0] = out_p[n, m, 0]
-            pts[r0 + m, 1] = out_p[n, m, 1]
-            pts[r0 + m, 2] = out_p[n, m, 2]
-            t[r0 + m] = out_par[n, m, 0]
-            s[r0 + m] = out_par[n, m, 1]
-            owner[r0 + m] = line
+            pts[r, 0] = out_p[n, m, 0]
+            pts[r, 1] = out_p[n, m, 1]
+            pts[r, 2] = out_p[n, m, 2]
+            t[r] = out_par[n, m, 0]
+            s[r] = out_par[n, m, 1]
+            owner[r] = line
+            r += 1

@@ -1,6 +1,6 @@
 """Lines in lock-step: the numba backend's path for fixed-step methods on uniform grids.
 
-``kernel._run_line`` follows one line at a time, and a line is a chain of dependent work:
+``kernel._advance_lines`` follows one line at a time, and a line is a chain of dependent work:
 the next stage's point needs this stage's velocity, which needs this stage's cell corners, which
 on a large field are often cache misses.  Here a thread advances ``W`` lines side by side, one
 stage of all of them at a time: the stage points of every lane, then a prefetch of every lane's
@@ -20,7 +20,7 @@ the domain and short of the dependent parameter's limit, room in the output buff
 that reaches the independent parameter's limit (``max_length`` in arc length, ``max_time`` in
 time) is clipped there, as the scalar kernel clips it, and ends the line.  At anything else — a
 boundary, NaN data, stagnation, a full buffer, ``max_steps`` — the lane stops before that step
-and ``kernel._run_line`` finishes the line from the saved state.  Adaptive methods,
+and ``kernel._advance_lines`` finishes the line from the saved state.  Adaptive methods,
 cell-aware stepping, resampled output, periodic and non-uniform axes go to the scalar kernel
 whole (``eligible``).
 """
@@ -32,6 +32,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..jit import inline
 from .kernel import (
     DONE,
     EMIT_STEPS,
@@ -84,7 +85,7 @@ def eligible(period, inv, ma, mb, mi, io) -> bool:
     return bool(np.all(period == 0.0) and np.all(inv > 0.0))
 
 
-@njit(cache=True, inline="always")
+@inline
 def _axis_cell(c, inv, x):
     """Cell of x on a uniform bounded axis, as ``kernel._relocate`` finds it (clamped to the
     end cells), without branches: the lane loops that call it stay vector code."""
@@ -102,7 +103,7 @@ def _axis_cell(c, inv, x):
 U3 = np.uint64(3)  # unsigned indices: numba adds no negative-index wraparound to the gathers
 
 
-@njit(cache=True, inline="always")
+@inline
 def _component(flat, b, di, dj, c, tx, ty, tz):
     """Component c of the trilinear polynomial of the cell whose first corner starts at
     flat[b] (b, di, dj, c unsigned): ``kernel._gather``'s coefficients in ``kernel._fc``'s
@@ -125,7 +126,7 @@ def _component(flat, b, di, dj, c, tx, ty, tz):
     return v000 + tx * (a1 + ty * (a4 + tz * a7) + tz * a5) + ty * (a2 + tz * a6) + tz * a3
 
 
-@njit(cache=True, inline="always")
+@inline
 def _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param):
     """Stage st of every lane of group g into k[g, st]: ``kernel._f`` (the cell located, its
     polynomial evaluated), as one branch-free loop over the lanes that LLVM makes vector code.
@@ -155,7 +156,7 @@ def _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param
         ok[g, w] &= (sp > 1e-150) & (sp < 1e150)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _sums(g, n, coef, row, y, h, k, out, comps):
     """out[g, a, w] = y[g, a, w] + h[g, w] * Σ_m<n coef[row, m] k[g, m, a, w] for a < comps,
     summed in the scalar kernel's order; the lane loops innermost, so they are vector code."""
@@ -170,7 +171,7 @@ def _sums(g, n, coef, row, y, h, k, out, comps):
             out[g, a, w] = y[g, a, w] + h[g, w] * out[g, a, w]
 
 
-@njit(cache=True, inline="always")
+@inline
 def _node(c, inv, x):
     """Cell index of x by one multiply, clamped (only to choose what to prefetch):
     ``kernel._node_index`` without its branches (periodic wrap, non-uniform axis), which
@@ -180,7 +181,7 @@ def _node(c, inv, x):
     return int(r)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb):
     """Ask the cache for every live lane's cell before any lane is evaluated (the corners'
     first and last components: two cache lines per corner pair).  The cells are found in a
@@ -207,7 +208,7 @@ def _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb):
 def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mi, fo, io, sf, si,
              out_p, out_par, out_n):
     """Advance the started lines ``active`` in groups of W as far as the lock-step goes; their
-    state goes back into ``sf``/``si`` for ``kernel._run_line`` to continue.
+    state goes back into ``sf``/``si`` for ``kernel._advance_lines`` to continue.
 
     Every array the parallel loop touches is made before it and indexed by the group, none a
     view of another, and ``flat`` is the only view of the field: numba then marks them as not

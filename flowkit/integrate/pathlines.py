@@ -36,6 +36,7 @@ from numba import njit
 
 from ..fields import Field
 from ..fields.interp import locate_axis, trilinear_vector
+from ..jit import inline
 from ..lines import Lines
 from . import attributes as _attributes
 from .kernel import (
@@ -90,7 +91,7 @@ R_NAN, R_SEED, R_LEFT = int(Reason.NAN_FIELD), int(Reason.SEED_OUTSIDE), int(Rea
 
 
 # -- the kernel -------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@inline
 def _axis(c, period, inv, x):
     """Cell and local coordinate of x on one axis; beyond a bounded end the end cell's
     polynomial is extended (local coordinate outside [0, 1]) so stages just outside stay smooth."""

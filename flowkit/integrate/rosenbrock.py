@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 
 from ..fields import Field
+from ..jit import inline
 from ..lines import Lines
 from . import kernel as K
 from .kernel import _dense, _fc, _move, _norm3, _put, _relocate, _root
@@ -63,7 +64,7 @@ _Q = 3  # Hermite dense output degree
 _OVERFLOW = 3  # line status: its output buffer filled; rerun with a larger one
 
 
-@njit(cache=True, inline="always")
+@inline
 def _rhs_jac(px, py, pz, param, coef, cf, J, g, u):
     """Jacobian of the right-hand side at p (time or arc-length form) into J (3x3) and the
     gradient of the dependent parameter's rate into g; u holds the raw velocity."""
@@ -86,7 +87,7 @@ def _rhs_jac(px, py, pz, param, coef, cf, J, g, u):
             g[j] = -g[j] / (sp * sp)
 
 
-@njit(cache=True, inline="always")
+@inline
 def _inv3(M, Mi):
     """Inverse of a 3x3 matrix by cofactors; False when singular or not finite."""
     c00 = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]

@@ -224,7 +224,7 @@ class _Setup:
                          *self.method.kernel_arrays(), self.fo, io, sf, si, out_p, out_par, out_n)
             m = int(out_n.sum())
             part = np.empty((m, 3)), np.empty(m), np.empty(m), np.empty(m, np.int64)
-            K.pack(active, out_p, out_par, out_n, *part)  # parallel copy, grouped by line
+            K.pack(active, out_p, out_par, out_n, *part)  # grouped by line
             chunks.append(part)
             if self.n_columns:  # the backend's attribute columns, in pack's order
                 extra.append(out_par[:, :, 2:][np.arange(B)[None, :] < out_n[:, None]])
