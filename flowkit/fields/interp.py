@@ -53,7 +53,16 @@ def locate_axis(c, period, inv, x):
         elif x > c[i + 1] and i < n - 2:
             i += 1
     else:
-        i = np.searchsorted(c, x, side="right") - 1
+        # bisection for the first node above x (np.searchsorted's side="right", NaN last), by
+        # hand: numba's generic searchsorted costs a second of compilation on a fresh machine
+        lo, hi = 0, n
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if x < c[mid]:
+                hi = mid
+            else:
+                lo = mid + 1
+        i = lo - 1
         if i > n - 2:
             i = n - 2
         elif i < 0:
