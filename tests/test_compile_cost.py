@@ -89,3 +89,17 @@ def test_attributes_pathlines_rosenbrock_compile_one_specialization_each(tmp_pat
     assert counts["flowkit.integrate.pathlines"]["_velocity"] == 1
     assert counts["flowkit.integrate.rosenbrock"]["_line"] == 1
     assert counts["flowkit.fields.interp"]["_sample_vectors_range"] == 1
+
+
+def test_no_helper_uses_numbas_ir_inlining():
+    """numba's IR inlining types and lowers a copy of a helper at every call site (it tripled
+    the tracing kernel's compile time); helpers use flowkit.jit.inline (LLVM inlines them)."""
+    import re
+    from pathlib import Path
+
+    import flowkit
+
+    root = Path(flowkit.__file__).parent
+    ir_inline = re.compile(r"jit\([^)]*\binline\s*=")
+    users = [str(p.relative_to(root)) for p in root.rglob("*.py") if ir_inline.search(p.read_text())]
+    assert not users, f"numba IR inlining in {users}: use flowkit.jit.inline"
