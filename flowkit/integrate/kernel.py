@@ -487,6 +487,21 @@ def _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1):
 
 
 @inline
+def _retry(hs, err, nan, hmin, safety, facmin, expo1):
+    """The step after a rejected step hs: a quarter of it after NaN data (``nan``: a stage or y1
+    met a NaN cell, or a zero speed in arc-length mode), else the controller's cut for the error
+    norm err; and the reason to stop instead (R_NAN, R_UNDER; -1: retry) when it falls below
+    hmin.  Shared with the pathline and Rosenbrock kernels."""
+    if nan:
+        h = 0.25 * hs
+        stop = R_NAN
+    else:
+        h = hs * max(facmin, safety * err ** (-expo1))
+        stop = R_UNDER
+    return h, (stop if abs(h) < hmin else -1)
+
+
+@inline
 def _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax, beta, expo1):
     """Hairer's PI controller with Gustafsson's memory, after an accepted step of hs (h: the
     step the controller had asked for): (next step, errp, errp ** beta).  Shared with the
@@ -865,33 +880,18 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 kfail = min(kfail + 1, 10)
                 kwait = (1 << (2 * kfail - 2)) - 1
                 continue
-            if not finite:
-                # a stage met NaN data (or a zero speed in arc-length mode): retry shorter
+            # rejected: NaN data met by a stage, an error above the tolerance, or y1 itself in
+            # a NaN cell (f(y1), computed once the step passed its error test)
+            too_big = adaptive and err > 1.0
+            if not finite or too_big or not math.isfinite(k[fs, 0] + k[fs, 1] + k[fs, 2] + k[fs, 3]):
                 n_rej += 1
-                h = 0.25 * hs
                 last_rej = True
-                if abs(h) < hmin:
-                    reason = R_NAN
-                    break
-                continue
-            if adaptive and err > 1.0:
-                n_rej += 1
-                h = hs * max(facmin, safety * err ** (-expo1))
-                last_rej = True
-                if abs(h) < hmin:
-                    reason = R_UNDER
+                h, reason = _retry(hs, err, not finite or not too_big, hmin, safety, facmin, expo1)
+                if reason >= 0:
                     break
                 continue
 
             # accepted
-            if not math.isfinite(k[fs, 0] + k[fs, 1] + k[fs, 2] + k[fs, 3]):
-                n_rej += 1  # y1 itself lies in a NaN cell
-                h = 0.25 * hs
-                last_rej = True
-                if abs(h) < hmin:
-                    reason = R_NAN
-                    break
-                continue
             if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
                 si[l, I_STIFF] = stiff_update(si[l, I_STIFF], dp5_hlambda(hs, k, ys, y1))
             if adaptive:

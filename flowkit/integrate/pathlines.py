@@ -63,6 +63,8 @@ from .kernel import (
     _initial_step,
     _load_state,
     _next_step,
+    _retry,
+    _root,
     _save_state,
     _stage_point,
 )
@@ -86,8 +88,8 @@ POINT_ATTRIBUTES = ("time", "arc_length", "speed", "velocity", "vorticity", "vor
 BUFFER_VERTICES = 1 << 22  # vertices held by one kernel launch (all lines together)
 
 R_OUT, R_MAXLEN, R_MAXTIME = int(Reason.OUT_OF_DOMAIN), int(Reason.MAX_LENGTH), int(Reason.MAX_TIME)
-R_MAXSTEPS, R_STAG, R_UNDER = int(Reason.MAX_STEPS), int(Reason.STAGNATION), int(Reason.STEP_UNDERFLOW)
-R_NAN, R_SEED, R_LEFT = int(Reason.NAN_FIELD), int(Reason.SEED_OUTSIDE), int(Reason.LEFT_TIME_RANGE)
+R_MAXSTEPS, R_STAG = int(Reason.MAX_STEPS), int(Reason.STAGNATION)
+R_SEED, R_LEFT = int(Reason.SEED_OUTSIDE), int(Reason.LEFT_TIME_RANGE)
 
 
 # -- the kernel -------------------------------------------------------------------------------
@@ -127,41 +129,6 @@ def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
     k[row, 2] = w
     k[row, 3] = math.sqrt(u * u + v * v + w * w)
     return True
-
-
-@njit(cache=True, _nrt=False)
-def _root(Q, comp, q, y0, hs, target, sgn):
-    """θ in [0, 1] where the dense output of ``comp`` reaches ``target`` (sgn * (value - target)
-    goes from < 0 at θ = 0 to >= 0 at θ = 1): Newton safeguarded by bisection."""
-    a, b = 0.0, 1.0
-    ga = sgn * (y0 - target)
-    gb = sgn * (_dense(Q, comp, q, y0, hs, 1.0) - target)
-    if ga >= 0.0:
-        return 0.0
-    if gb < 0.0:
-        return 1.0
-    th = -ga / (gb - ga)
-    for _ in range(60):
-        r = 0.0
-        dr = 0.0
-        for j in range(q - 1, -1, -1):
-            dr = dr * th + r
-            r = r * th + Q[comp, j]
-        g = sgn * (y0 + hs * th * r - target)
-        if g == 0.0:
-            return th
-        if g > 0.0:
-            b = th
-        else:
-            a = th
-        dg = sgn * hs * (r + th * dr)
-        nxt = th - g / dg if dg != 0.0 else 0.5 * (a + b)
-        if not (a < nxt < b):
-            nxt = 0.5 * (a + b)
-        if abs(nxt - th) <= 4e-16 or b - a <= 4e-16:
-            return nxt
-        th = nxt
-    return th
 
 
 @njit(cache=True, nogil=True)
@@ -278,37 +245,21 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
                 sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
                 e5 += (ea / sc) ** 2
         err = abs(hs) * math.sqrt(e5 / 3.0)
-        if not (finite and math.isfinite(err)):
-            n_rej += 1  # a stage met NaN data: retry shorter
-            h = 0.25 * hs
-            last_rej = True
-            if abs(h) < hmin:
-                reason = R_NAN
-                break
-            continue
-        if err > 1.0:
+        finite = finite and math.isfinite(err)
+        if finite and err <= 1.0:  # stages up to f(y1) and those only the dense output uses
+            for st in range(n_err, S):
+                _stage_point(ma, k, st, y, hs, yt)
+                if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
+                                 v0, v1, t0, t1, k, st):
+                    finite = False
+        if not (finite and err <= 1.0):  # NaN data met by a stage, or an error too large
             n_rej += 1
-            h = hs * max(facmin, safety * err ** (-expo1))
             last_rej = True
-            if abs(h) < hmin:
-                reason = R_UNDER
+            h, reason = _retry(hs, err, not finite or not err > 1.0, hmin, safety, facmin, expo1)
+            if reason >= 0:
                 break
             continue
-        # accepted: stages up to f(y1) and those only the dense output uses
-        ok = True
-        for st in range(n_err, S):
-            _stage_point(ma, k, st, y, hs, yt)
-            if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
-                             v0, v1, t0, t1, k, st):
-                ok = False
-        if not ok:
-            n_rej += 1
-            h = 0.25 * hs
-            last_rej = True
-            if abs(h) < hmin:
-                reason = R_NAN
-                break
-            continue
+        # accepted
         hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax,
                                         beta, expo1)
         hnext = d * min(abs(hnext), hmax)
@@ -329,10 +280,10 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
             if period[a] != 0.0:
                 continue
             if y1[a] < c[0]:
-                tha = _root(Q, a, q, y[a], hs, c[0], -1.0)
+                tha = _root(Q, a, q, y[a], hs, c[0], -1.0, 1.0)
                 face = c[0]
             elif y1[a] > c[c.size - 1]:
-                tha = _root(Q, a, q, y[a], hs, c[c.size - 1], 1.0)
+                tha = _root(Q, a, q, y[a], hs, c[c.size - 1], 1.0, 1.0)
                 face = c[c.size - 1]
             else:
                 continue
@@ -342,7 +293,7 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
                 ev_face = face
         ev_len = False
         if y1[3] >= maxlen:
-            thl = _root(Q, np.int64(3), q, y[3], hs, maxlen, 1.0)
+            thl = _root(Q, np.int64(3), q, y[3], hs, maxlen, 1.0, 1.0)
             if thl < th or ev_axis < 0:
                 th = thl
                 ev_len = True

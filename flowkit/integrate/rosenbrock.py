@@ -277,20 +277,11 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
         if finite:  # f(y1): the next step's f0 and the Hermite end slope
             _rhs(y1[0], y1[1], y1[2], param, cf, coef, k, np.int64(4))
             finite = math.isfinite(k[4, 0] + k[4, 1] + k[4, 2] + k[4, 3])
-        if not finite:
+        if not finite or err > 1.0:  # NaN data met (a stage, or f(y1)), or an error too large
             n_rej += 1
-            h = 0.25 * hs
             last_rej = True
-            if abs(h) < hmin:
-                reason = K.R_NAN
-                break
-            continue
-        if err > 1.0:
-            n_rej += 1
-            h = hs * max(facmin, safety * err ** (-1.0 / (ERR_ORDER + 1)))
-            last_rej = True
-            if abs(h) < hmin:
-                reason = K.R_UNDER
+            h, reason = K._retry(hs, err, not finite, hmin, safety, facmin, 1.0 / (ERR_ORDER + 1))
+            if reason >= 0:
                 break
             continue
         fac = facmax if err == 0.0 else min(facmax, max(facmin, safety * err ** (-1.0 / (ERR_ORDER + 1))))
