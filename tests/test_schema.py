@@ -116,3 +116,34 @@ def test_no_column_is_addressed_by_a_bare_number():
     arrays = METHODS["dopri5"].kernel_arrays()
     src = codegen.render(codegen.Flags("dopri5", codegen.tableau_key(arrays)), arrays)
     assert not BARE.search(src)
+
+
+def test_a_backend_gets_one_launch_with_the_callers_arrays():
+    """trace hands a backend one ``Launch``; its arrays() are those objects themselves (no copy:
+    the kernel writes the state and outputs in place), in the order the kernel takes them."""
+    import inspect
+
+    import flowkit
+    from flowkit.fields.analytic import SolidBodyRotation
+    from flowkit.integrate.launch import FieldArrays, Launch, MethodArrays
+
+    f = SolidBodyRotation().to_field(9)
+    seen = []
+
+    def backend(launch):
+        assert isinstance(launch, Launch)
+        assert isinstance(launch.field, FieldArrays) and isinstance(launch.method, MethodArrays)
+        arrays = launch.arrays()
+        assert arrays[0] is launch.active and arrays[-1] is launch.out_n
+        assert arrays[5] is launch.field.gx and arrays[10] is launch.field.vec
+        assert arrays[11] is launch.method.c and arrays[17] is launch.method.info
+        assert arrays[20] is launch.sf and arrays[21] is launch.si
+        assert launch.sf.shape[1] == schema.NF and launch.si.shape[1] == schema.NI
+        assert launch.fo.shape == (schema.NFO,) and launch.io.shape == (schema.NIO,)
+        seen.append(len(arrays))
+        K.advance(launch)
+
+    lines = flowkit.trace(f, np.full((4, 3), 0.3), backend=backend, max_length=1.0)
+    assert len(lines) == 4 and seen
+    kernel_params = list(inspect.signature(K._advance_range.py_func).parameters)[2:]
+    assert seen[0] == len(kernel_params) and kernel_params[0] == "active"

@@ -1108,18 +1108,16 @@ def _run_line(l, slot, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, v
         _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
 
 
-def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
-    """Advance the lines ``active`` until each is done or has filled its B output slots.
+def advance(launch):
+    """Advance the lines ``launch.active`` (a ``launch.Launch``) until each is done or has filled
+    its B output slots.
 
     ``io[P_PASS]``: PASS_FULL that; PASS_SETUP start or resume each line and stop it before its
     first step; PASS_FINISH continue the lines not done, after the vertices already in the
     buffers (lanes.py).  The lines are shared among numba's threads in ranges
     (``threads.run_ranges``) rather than by a ``prange``: a parallel loop around the kernel
     costs several seconds more to compile on every fresh machine."""
-    run_ranges(_advance_range, active.size, active, seeds, dirs, spacings, phases, gx, gy, gz,
-               period, inv, vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par,
-               out_n)
+    run_ranges(_advance_range, launch.active.size, *launch.arrays())
 
 
 @njit(cache=True, parallel=True)

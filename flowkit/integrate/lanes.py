@@ -329,20 +329,19 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mi, fo, io, sf
                 si[l, I_STATUS], si[l, I_REASON] = DONE, r_ind
 
 
-def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
+def advance(launch):
     """``kernel.advance``, with lines in lock-step where ``eligible`` (same results).  A Python
     function, not a compiled one: a compiled dispatcher would compile the lock-step (a third of
     the kernels' compile time) for every trace, where only fixed-step plain traces run it."""
-    if eligible(period, inv, ma, mb, mi, io):
+    L, f, m, io = launch, launch.field, launch.method, launch.io
+    if eligible(f.period, f.inv, m.a, m.b, m.info, io):
         io[P_PASS] = PASS_SETUP
-        advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                           mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
-        lockstep(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
-                 mc, ma, mi, fo, io, sf, si, out_p, out_par, out_n)
+        advance_one_by_one(L)
+        lockstep(L.active, L.dirs, f.gx, f.gy, f.gz, f.inv, f.vec.reshape(-1), f.vec.shape[1],
+                 f.vec.shape[2], m.c, m.a, m.info, L.fo, io, L.sf, L.si, L.out_p, L.out_par,
+                 L.out_n)
         io[P_PASS] = PASS_FINISH
     try:
-        advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                           mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
+        advance_one_by_one(L)
     finally:
         io[P_PASS] = PASS_FULL

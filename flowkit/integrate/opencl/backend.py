@@ -1,7 +1,7 @@
 """The OpenCL backend: a drop-in for ``kernel.advance`` that runs the generated kernel on a device.
 
-``OpenCLAdvance(spec)(...)`` takes exactly the arguments of the numba ``kernel.advance`` and has
-the same effect on ``sf``, ``si``, ``out_p``, ``out_par`` and ``out_n``: the host driver in
+``OpenCLAdvance(spec)(launch)`` takes the ``launch.Launch`` the numba ``kernel.advance`` takes and
+has the same effect on ``sf``, ``si``, ``out_p``, ``out_par`` and ``out_n``: the host driver in
 trace.py (vertex budget per line per pass, relaunch of unfinished lines, never truncating) is
 shared by both backends.  The active lines are processed in chunks; each chunk's state is packed,
 uploaded on one queue, advanced on a second and read back on a third, so that on a device with
@@ -34,7 +34,7 @@ LOCAL_SIZE = 64
 
 
 class OpenCLAdvance:
-    """Callable with the signature of ``flowkit.integrate.kernel.advance``.
+    """Callable with the signature of ``flowkit.integrate.kernel.advance`` (one ``Launch``).
 
     spec    "opencl[:PLATFORM[:DEVICE]]"
     dtype   "float64" (default where the device has fp64, else float32) or "float32"
@@ -162,12 +162,12 @@ class OpenCLAdvance:
         return curl
 
     # -- one pass ----------------------------------------------------------------------------
-    def __call__(self, *args):
-        self._run(args, None)
+    def __call__(self, launch):
+        self._run(launch, None)
 
-    def _run(self, args, bound):
+    def _run(self, work, bound):
         (active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-         mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n) = args
+         mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n) = work.arrays()
         cl = self.cl
         plan = bound.plan if bound is not None else vertex.Plan((), (), ())
         arrays = (mc, ma, mb, me, me2, mp, mi)
@@ -277,8 +277,8 @@ class _WithAttributes:
         self.plan = plan
         self.n_columns = plan.n_columns
 
-    def __call__(self, *args):
-        self.base._run(args, self)
+    def __call__(self, launch):
+        self.base._run(launch, self)
 
     def point_data(self, t, s, columns):
         return self.plan.point_data(t, s, columns)
