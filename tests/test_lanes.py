@@ -1,6 +1,7 @@
 """Lines in lock-step (flowkit/integrate/lanes.py): the same lines as the scalar kernel, bit for
 bit, with the lock-step doing the steps where it applies."""
 
+import copy
 import re
 
 import numpy as np
@@ -82,14 +83,14 @@ def test_bit_identical_at_nan_and_stagnation(holes, zero, param):
     assert reasons & {int(K.R_NAN), int(K.R_STAG)}
 
 
-def _kernel_args(field, seeds, **kw):
-    """The arguments of the first kernel call trace makes."""
+def _first_launch(field, seeds, **kw):
+    """A copy of the first ``Launch`` trace hands its backend, taken before the kernel runs."""
     got = []
 
-    def capture(*args):
+    def capture(launch):
         if not got:
-            got.append([a.copy() if isinstance(a, np.ndarray) else a for a in args])
-        K.advance(*args)
+            got.append(copy.deepcopy(launch))
+        K.advance(launch)
 
     trace(field, seeds, backend=capture, **kw)
     return got[0]
@@ -103,14 +104,13 @@ def test_lockstep_takes_the_interior_steps():
     seeds = np.random.default_rng(2).uniform(-0.6, 0.6, (100, 3))
     kw = {"method": "rk4", "step": 0.05, "max_length": 3.0, "cell_aware": False,
           "parameter": "arc_length"}  # (in time, max_length is met on the dense output)
-    args = _kernel_args(f, seeds, **kw)
-    (active, _, dirs, _, _, gx, gy, gz, period, inv, vec,
-     mc, ma, mb, _, _, _, mi, fo, io, sf, si, out_p, out_par, out_n) = args
-    assert lanes.eligible(period, inv, ma, mb, mi, io)
-    io[K.P_PASS] = K.PASS_SETUP  # start the lines, as lanes.advance does
-    K.advance(*args)
-    lanes.lockstep(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
-                   mc, ma, mi, fo, io, sf, si, out_p, out_par, out_n)
+    L = _first_launch(f, seeds, **kw)
+    g, m, si, sf, out_p, out_n = L.field, L.method, L.si, L.sf, L.out_p, L.out_n
+    assert lanes.eligible(g.period, g.inv, m.a, m.b, m.info, L.io)
+    L.io[K.P_PASS] = K.PASS_SETUP  # start the lines, as lanes.advance does
+    K.advance(L)
+    lanes.lockstep(L.active, L.dirs, g.gx, g.gy, g.gz, g.inv, g.vec.reshape(-1), g.vec.shape[1],
+                   g.vec.shape[2], m.c, m.a, m.info, L.fo, L.io, sf, si, out_p, L.out_par, out_n)
     steps = int(np.ceil(3.0 / 0.05))
     assert np.all(si[:, K.I_NACC] >= steps - 1)
     assert np.all(out_n == si[:, K.I_NACC] + 1)  # the seed and a vertex per step
@@ -140,9 +140,9 @@ def test_kernel_locates_a_point_on_a_face_afresh():
     point on a face gets the cell a fresh lookup gives (what the lock-step does), not the cell
     the line came from: with the cell below cached, a point on its upper face that the lookup
     puts in the cell above is evaluated there."""
-    args = _kernel_args(_abc(), _seeds(5), method="rk4", step=0.1, max_length=1.0,
-                        cell_aware=False)
-    gx, gy, gz, period, inv, vec = args[5:11]
+    g = _first_launch(_abc(), _seeds(5), method="rk4", step=0.1, max_length=1.0,
+                      cell_aware=False).field
+    gx, gy, gz, period, inv, vec = g.gx, g.gy, g.gz, g.period, g.inv, g.vec
     # a node the lookup puts in the cell above it (rounding may put a node in the cell below)
     m = next(m for m in range(1, gx.size - 2)
              if _axis_cell(gx, inv[0], gx[m]) == m)
@@ -171,16 +171,15 @@ def test_lockstep_is_vector_code():
     if config.CPU_NAME or "+avx512f" not in binding.get_host_cpu_features().flatten():
         pytest.skip("needs numba compiling for an AVX-512 host")
     f = SolidBodyRotation().to_field(9)
-    args = _kernel_args(f, np.full((3, 3), 0.3), method="rk4", step=0.05, max_length=0.5,
-                        cell_aware=False, parameter="arc_length")
-    (active, _, dirs, _, _, gx, gy, gz, _, inv, vec,
-     mc, ma, _, _, _, _, mi, fo, io, sf, si, out_p, out_par, out_n) = args
-    io[K.P_PASS] = K.PASS_SETUP
-    K.advance(*args)
+    L = _first_launch(f, np.full((3, 3), 0.3), method="rk4", step=0.05, max_length=0.5,
+                      cell_aware=False, parameter="arc_length")
+    g, m = L.field, L.method
+    L.io[K.P_PASS] = K.PASS_SETUP
+    K.advance(L)
     opts = {k: v for k, v in lanes.lockstep.targetoptions.items() if k != "nopython"}
     fresh = njit(**opts)(lanes.lockstep.py_func)  # its own options, not cached
-    fresh(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
-          mc, ma, mi, fo, io, sf, si, out_p, out_par, out_n)
+    fresh(L.active, L.dirs, g.gx, g.gy, g.gz, g.inv, g.vec.reshape(-1), g.vec.shape[1],
+          g.vec.shape[2], m.c, m.a, m.info, L.fo, L.io, L.sf, L.si, L.out_p, L.out_par, L.out_n)
     asm = fresh.overloads[fresh.signatures[0]].library.get_asm_str()
     assert re.search(r"vsqrtpd\s+%[yz]mm", asm)  # the evaluations, four or eight lanes at once
     assert re.search(r"vgather[dq]pd", asm)  # the cell corners
@@ -192,11 +191,11 @@ def test_eligible_only_where_it_applies():
     base = {"method": "rk4", "step": 0.1, "max_length": 1.0, "cell_aware": False}
 
     def ok(field=f, last_row=None, **kw):
-        args = _kernel_args(field, s, **(base | kw))
-        period, inv, ma, mb, mi, io = (args[i] for i in (8, 9, 12, 13, 17, 19))
+        L = _first_launch(field, s, **(base | kw))
+        g, m = L.field, L.method
         if last_row is not None:  # the f(y1) stage's weights, changed
-            ma[mi[2], :mi[1]] = last_row
-        return lanes.eligible(period, inv, ma, mb, mi, io)
+            m.a[m.info[K.M_FSAL], :m.info[K.M_NERR]] = last_row
+        return lanes.eligible(g.period, g.inv, m.a, m.b, m.info, L.io)
 
     assert ok()
     assert not ok(last_row=[1 / 6, 1 / 3, 1 / 3, 1 / 6 + 1e-16])  # its point is not y1 then

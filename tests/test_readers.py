@@ -9,12 +9,14 @@ import h5py
 import numpy as np
 import pytest
 
-from flowkit import Field, Grid
+import flowkit.fields
+from flowkit import Grid
 from flowkit.fields.readers import (
     KNOWN_EXTENSIONS,
     ReaderError,
     SnapshotRef,
     find_lattice,
+    from_xarray,
     load_field,
     load_series,
 )
@@ -424,7 +426,7 @@ def hot_dataset(with_time):
 
 def test_from_xarray_and_netcdf(tmp_path):
     ds, U, T = hot_dataset(with_time=False)
-    f = Field.from_xarray(ds, u="u", v="v", w="w")
+    f = from_xarray(ds, u="u", v="v", w="w")
     np.testing.assert_array_equal(f.vector, U)
     np.testing.assert_array_equal(f.scalars["T"], T)
     dst, _, _ = hot_dataset(with_time=True)
@@ -437,6 +439,17 @@ def test_from_xarray_and_netcdf(tmp_path):
         ReaderError, match=r"h\.nc: no variable 'q' \(given for v\); variables: u, v, w, T"
     ):
         load_field(tmp_path / "h.nc", u="u", v="q", w="w")
+
+
+def test_field_module_does_not_import_the_readers():
+    """The readers build Fields; field.py and grid.py know nothing of them (no import cycle)."""
+    import ast
+
+    for name in ("field.py", "grid.py"):
+        tree = ast.parse((Path(flowkit.fields.__file__).parent / name).read_text())
+        mods = {n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+        mods |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        assert not any("readers" in m for m in mods), (name, mods)
 
 
 # -- series ------------------------------------------------------------------------------------

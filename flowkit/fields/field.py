@@ -55,14 +55,6 @@ class Field:
             checked[name] = np.ascontiguousarray(a, dtype=np.float64)
         self.scalars = checked
 
-    @classmethod
-    def from_xarray(cls, dataset, u=None, v=None, w=None, scalars=None, **opts) -> Field:
-        """Field from an xarray Dataset: velocity components u, v, w (variable names) and
-        scalar variables; options in flowkit.fields.readers.xarray_io.from_xarray."""
-        from .readers.xarray_io import from_xarray
-
-        return from_xarray(dataset, u, v, w, scalars, **opts)
-
     # -- sampling -------------------------------------------------------------------------
     def sample(self, points) -> tuple[np.ndarray, np.ndarray]:
         """Trilinear vector at points (n, 3) -> (values (n, 3), status (n,) int8).

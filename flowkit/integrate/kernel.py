@@ -40,43 +40,93 @@ from numba.extending import intrinsic
 from ..fields.interp import locate_axis
 from ..jit import helper, inline
 from .reasons import Reason
+
+# the state, option and method-info columns (schema.py), all of them: callers address them as
+# kernel.X too
+from .schema import (  # noqa: F401
+    DONE,
+    EMIT_FINAL,
+    EMIT_SPACING,
+    EMIT_STEPS,
+    EV_BOUNDARY,
+    EV_DEPLIM,
+    EV_FACE,
+    EV_NONE,
+    I_CELL,
+    I_FINAL,
+    I_KFAIL,
+    I_KWAIT,
+    I_LASTREJ,
+    I_M,
+    I_NACC,
+    I_NCROSS,
+    I_NREJ,
+    I_PEND,
+    I_REASON,
+    I_STATUS,
+    I_STIFF,
+    M_ADAPTIVE,
+    M_FSAL,
+    M_HASE2,
+    M_KEXP,
+    M_NERR,
+    M_STAGES,
+    NEW,
+    NF,
+    NFO,
+    NI,
+    NIO,
+    NMI,
+    O_ATOL,
+    O_BETA,
+    O_CELLFAC,
+    O_FACMAX,
+    O_FACMIN,
+    O_H0,
+    O_HMAX,
+    O_HMIN,
+    O_MAXLEN,
+    O_MAXTIME,
+    O_RTOL,
+    O_SAFETY,
+    O_STAG,
+    P_AWARE,
+    P_CROSS,
+    P_EMIT,
+    P_MAXSTEPS,
+    P_PARAM,
+    P_PASS,
+    P_STIFF,
+    PASS_FINISH,
+    PASS_FULL,
+    PASS_SETUP,
+    QMAX,
+    RUNNING,
+    S_DEP,
+    S_ERRP,
+    S_H,
+    S_HI,
+    S_HK,
+    S_HS,
+    S_K0,
+    S_LAST_S,
+    S_LO,
+    S_Q,
+    S_TAU,
+    S_TAU0,
+    S_TH,
+    S_Y,
+    S_Y0,
+)
 from .stiffness import NONSTIFF_RESET, STIFF_STEPS, dp5_hlambda, stiff_update  # noqa: F401 (CL)
 from .threads import run_ranges
 
-QMAX = 8  # highest dense-output degree a method may have
-# float state (sf) columns
-S_Y, S_TAU, S_DEP, S_H, S_ERRP, S_K0 = 0, 3, 4, 5, 6, 7  # k0 has 4 entries: 7..10
-S_LO, S_HI = 11, 14  # cell faces, 3 each (cell-aware mode)
-S_Y0, S_TAU0, S_HS, S_TH = 17, 21, 22, 23  # pending step: y0 (+dep) (4), tau0, h, θ end
-S_LAST_S = 24  # arc length of the last emitted vertex
-S_Q = 25  # dense coefficients, 4 x QMAX
-S_HK = S_Q + 4 * QMAX  # the longest step across faces that the kink error allowed (crossing)
-NF = S_HK + 1
-# int state (si) columns
-I_STATUS, I_REASON, I_NACC, I_NREJ, I_CELL, I_LASTREJ, I_PEND, I_M, I_FINAL, I_STIFF = (
-    0, 1, 2, 3, 4, 7, 8, 9, 10, 11)
-I_NCROSS, I_KFAIL, I_KWAIT = 12, 13, 14  # crossing: steps that crossed faces, failed tries
-NI = 15  # in a row, faces to wait before the next try
-NEW, RUNNING, DONE = 0, 1, 2
-# float options (fo)
-O_RTOL, O_ATOL, O_SAFETY, O_FACMIN, O_FACMAX, O_BETA = 0, 3, 6, 7, 8, 9
-O_H0, O_HMIN, O_HMAX, O_MAXLEN, O_MAXTIME, O_STAG, O_CELLFAC = 10, 11, 12, 13, 14, 15, 16
-NFO = 17
-# int options (io)
-P_MAXSTEPS, P_PARAM, P_AWARE, P_EMIT, P_STIFF, P_PASS, P_CROSS = 0, 1, 2, 3, 4, 5, 6
-NIO = 7  # P_STIFF: stage index of the stiffness pair (dopri5: 5, c = 1 like f(y1)); -1 none
-# P_PASS: what ``advance`` does (lanes.py runs a launch as a setup and a finishing pass around
-# its lock-step; a flag in io, not an argument, so that _advance_line is compiled once)
-PASS_FULL, PASS_SETUP, PASS_FINISH = 0, 1, 2
 # P_CROSS (cell-aware, adaptive): a step the controller wants longer than the cell cap is tried
 # across faces, each stage in its own cell, and kept when its error estimate passes; otherwise
 # the step ends on the face as usual.  The kink at a face makes the error of such a step grow
 # like h^2, so the longest crossing step has its own controller (S_HK): shrunk by a rejected
 # crossing, grown on every face the line steps through.
 KINK_CELLS, KINK_GROW, KINK_SHRINK_MIN = 3.0, 1.15, 0.1
-EMIT_STEPS, EMIT_SPACING, EMIT_FINAL = 0, 1, 2
-# events
-EV_NONE, EV_FACE, EV_BOUNDARY, EV_DEPLIM = 0, 1, 2, 3
 
 R_OUT = int(Reason.OUT_OF_DOMAIN)
 R_MAXLEN = int(Reason.MAX_LENGTH)
@@ -661,7 +711,8 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                    k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd, coef0, cf0, ci0):
     """The lines ``active[start:stop]`` one after the other (slots start..stop-1), without the
     GIL, so that threads run ranges side by side (``threads.run_ranges``)."""
-    S, n_err, fs, adaptive, kexp, has_e2 = mi[0], mi[1], mi[2], mi[3] != 0, mi[4], mi[5] != 0
+    S, n_err, fs, adaptive, kexp = mi[M_STAGES], mi[M_NERR], mi[M_FSAL], mi[M_ADAPTIVE] != 0, mi[M_KEXP]
+    has_e2 = mi[M_HASE2] != 0
     C0, C1, C2, C3 = np.int64(0), np.int64(1), np.int64(2), np.int64(3)  # typed (see helper)
     q = mp.shape[1]
     param, aware, emit = io[P_PARAM], io[P_AWARE] != 0, io[P_EMIT]
@@ -1056,21 +1107,19 @@ def _scratch(n_rows):
 
 def _advance_range(start, stop, *args):
     """``_advance_lines`` with scratch arrays of its own (one set per range)."""
-    _advance_lines(start, stop, *args, *_scratch(int(args[17][0]) + 1))
+    _advance_lines(start, stop, *args, *_scratch(int(args[17][M_STAGES]) + 1))
 
 
-def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
-    """Advance the lines ``active`` until each is done or has filled its B output slots.
+def advance(launch):
+    """Advance the lines ``launch.active`` (a ``launch.Launch``) until each is done or has filled
+    its B output slots.
 
     ``io[P_PASS]``: PASS_FULL that; PASS_SETUP start or resume each line and stop it before its
     first step; PASS_FINISH continue the lines not done, after the vertices already in the
     buffers (lanes.py).  The lines are shared among numba's threads in ranges
     (``threads.run_ranges``) rather than by a ``prange``: a parallel loop around the kernel
     costs several seconds more to compile on every fresh machine."""
-    run_ranges(_advance_range, active.size, active, seeds, dirs, spacings, phases, gx, gy, gz,
-               period, inv, vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par,
-               out_n)
+    run_ranges(_advance_range, launch.active.size, *launch.arrays())
 
 
 @njit(cache=True)

@@ -33,7 +33,9 @@ import numpy as np
 from numba import njit, prange
 
 from ..jit import inline
-from .kernel import (
+from .kernel import R_MAXLEN, R_MAXTIME, _prefetch, _put
+from .kernel import advance as advance_one_by_one
+from .schema import (
     DONE,
     EMIT_STEPS,
     I_LASTREJ,
@@ -41,6 +43,10 @@ from .kernel import (
     I_NREJ,
     I_REASON,
     I_STATUS,
+    M_ADAPTIVE,
+    M_FSAL,
+    M_NERR,
+    M_STAGES,
     O_HMAX,
     O_MAXLEN,
     O_MAXTIME,
@@ -54,18 +60,13 @@ from .kernel import (
     PASS_FINISH,
     PASS_FULL,
     PASS_SETUP,
-    R_MAXLEN,
-    R_MAXTIME,
     RUNNING,
     S_DEP,
     S_H,
     S_K0,
     S_TAU,
     S_Y,
-    _prefetch,
-    _put,
 )
-from .kernel import advance as advance_one_by_one
 
 W = 32  # lines per group: enough cache misses in flight to cover the memory latency
 SMAX = 5  # stages of the eligible methods (rk4 and euler with their f(y1) stage)
@@ -76,10 +77,10 @@ def eligible(period, inv, ma, mb, mi, io) -> bool:
     last stage evaluates f(y1) with y1's own weights (its stage point is y1), plain stepping, a
     vertex per step, no stiffness test, every axis uniform and bounded.  Plain Python: it runs
     once a launch, and ``advance`` compiles the lock-step only for launches that pass."""
-    if mi[3] != 0 or mi[0] > SMAX or io[P_AWARE] != 0 or io[P_EMIT] != EMIT_STEPS \
-            or io[P_STIFF] >= 0:
+    if mi[M_ADAPTIVE] != 0 or mi[M_STAGES] > SMAX or io[P_AWARE] != 0 \
+            or io[P_EMIT] != EMIT_STEPS or io[P_STIFF] >= 0:
         return False
-    n_err, fs = int(mi[1]), int(mi[2])
+    n_err, fs = int(mi[M_NERR]), int(mi[M_FSAL])
     if fs != n_err or np.any(ma[fs, :n_err] != mb[:n_err]):
         return False
     return bool(np.all(period == 0.0) and np.all(inv > 0.0))
@@ -215,7 +216,7 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mi, fo, io, sf
     aliasing (it does so only when its alias analysis of the loop finds nothing), which LLVM's
     vectorizer needs for the gathers of ``_evaluate``."""
     B = out_p.shape[1]
-    fs = mi[2]  # the f(y1) stage; y1 takes the stages before it (eligible: n_err == fs)
+    fs = mi[M_FSAL]  # the f(y1) stage; y1 takes the stages before it (eligible: n_err == fs)
     param, max_steps = io[P_PARAM], io[P_MAXSTEPS]
     hmax, stag = fo[O_HMAX], fo[O_STAG]
     lim_ind = fo[O_MAXTIME] if param == 0 else fo[O_MAXLEN]
@@ -329,20 +330,19 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mi, fo, io, sf
                 si[l, I_STATUS], si[l, I_REASON] = DONE, r_ind
 
 
-def advance(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n):
+def advance(launch):
     """``kernel.advance``, with lines in lock-step where ``eligible`` (same results).  A Python
     function, not a compiled one: a compiled dispatcher would compile the lock-step (a third of
     the kernels' compile time) for every trace, where only fixed-step plain traces run it."""
-    if eligible(period, inv, ma, mb, mi, io):
+    L, f, m, io = launch, launch.field, launch.method, launch.io
+    if eligible(f.period, f.inv, m.a, m.b, m.info, io):
         io[P_PASS] = PASS_SETUP
-        advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                           mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
-        lockstep(active, dirs, gx, gy, gz, inv, vec.reshape(-1), vec.shape[1], vec.shape[2],
-                 mc, ma, mi, fo, io, sf, si, out_p, out_par, out_n)
+        advance_one_by_one(L)
+        lockstep(L.active, L.dirs, f.gx, f.gy, f.gz, f.inv, f.vec.reshape(-1), f.vec.shape[1],
+                 f.vec.shape[2], m.c, m.a, m.info, L.fo, io, L.sf, L.si, L.out_p, L.out_par,
+                 L.out_n)
         io[P_PASS] = PASS_FINISH
     try:
-        advance_one_by_one(active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-                           mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n)
+        advance_one_by_one(L)
     finally:
         io[P_PASS] = PASS_FULL

@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import schema
+
 
 @dataclass(frozen=True, eq=False)
 class Method:
@@ -54,13 +56,17 @@ class Method:
         return min(self.order, self.err_order) + 1 if self.adaptive else self.order + 1
 
     def kernel_arrays(self):
-        """(c, a, b, e, e2, p, ints) as contiguous float64/int64 arrays for the numba kernel.
-
-        ints = [n_stages, n_err, fsal_stage, adaptive, exponent k, has_e2].
-        """
+        """(c, a, b, e, e2, p, ints) as contiguous float64/int64 arrays for the kernels; ints
+        in the columns of ``schema.METHOD_INFO`` (stages, n_err, fsal stage, adaptive, exponent
+        k, has e2)."""
         e2 = np.zeros(self.n_stages) if self.e2 is None else self.e2
-        ints = np.array([self.n_stages, self.n_err, self.fsal_stage, int(self.adaptive),
-                         self.error_exponent_k, int(self.e2 is not None)], dtype=np.int64)
+        ints = np.zeros(schema.NMI, np.int64)
+        ints[schema.M_STAGES] = self.n_stages
+        ints[schema.M_NERR] = self.n_err
+        ints[schema.M_FSAL] = self.fsal_stage
+        ints[schema.M_ADAPTIVE] = self.adaptive
+        ints[schema.M_KEXP] = self.error_exponent_k
+        ints[schema.M_HASE2] = self.e2 is not None
         arrs = [np.ascontiguousarray(x, dtype=np.float64) for x in (self.c, self.a, self.b, self.e, e2, self.p)]
         return (*arrs, ints)
 

@@ -13,8 +13,8 @@ in time there.
 Why a kernel of its own: the streamline kernel (``kernel.py``) evaluates a steady field from the
 8 corner values of one cell gathered once per cell; it has no notion of time in the field.  This
 kernel shares the method tableaux, the trilinear interpolation (``interp.locate_axis``,
-``interp.trilinear_vector``), the step-size controller, the dense output and the option columns
-of ``kernel.py`` (its error norm is the same formula, kept in step by the tests on analytic
+``interp.trilinear_vector``), the step-size controller, the dense output and the leading state
+and option columns (``schema.py``) of ``kernel.py`` (its error norm is the same formula, kept in step by the tests on analytic
 fields) but evaluates two snapshots per stage.
 
 Seeds are released at given times (default: the start of the series, its end when backward).
@@ -40,24 +40,6 @@ from ..jit import inline
 from ..lines import Lines
 from . import attributes as _attributes
 from .kernel import (
-    I_NACC,
-    I_NREJ,
-    I_REASON,
-    I_STATUS,
-    O_ATOL,
-    O_BETA,
-    O_FACMAX,
-    O_FACMIN,
-    O_H0,
-    O_HMAX,
-    O_HMIN,
-    O_MAXLEN,
-    O_MAXTIME,
-    O_RTOL,
-    O_SAFETY,
-    O_STAG,
-    S_K0,
-    S_TAU,
     _dense,
     _initial_guess,
     _initial_step,
@@ -70,18 +52,45 @@ from .kernel import (
 )
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES, Reason
+from .schema import (
+    DONE,
+    I_NACC,
+    I_NREJ,
+    I_REASON,
+    I_STATUS,
+    M_FSAL,
+    M_KEXP,
+    M_NERR,
+    M_STAGES,
+    NEW,
+    O_ATOL,
+    O_BETA,
+    O_FACMAX,
+    O_FACMIN,
+    O_H0,
+    O_HMAX,
+    O_HMIN,
+    O_MAXLEN,
+    O_MAXTIME,
+    O_RTOL,
+    O_SAFETY,
+    O_STAG,
+    P_MAXSTEPS,
+    PATH_FLOAT_OPTIONS,
+    PATH_FLOAT_STATE,
+    PATH_INT_OPTIONS,
+    PATH_INT_STATE,
+    RUNNING,
+    S_TAU,
+)
 from .threads import run_ranges
 
-# float state columns, the streamline kernel's first ones (kernel._load_state / _save_state):
-# position (3), time (its parameter), arc length (its dependent variable), step, previous error,
-# k0 (u, v, w, |v|)
-NF = S_K0 + 4
-# int state columns: the streamline kernel's first four, then the last step's rejection
-I_LASTREJ = I_NREJ + 1
-NI = I_LASTREJ + 1
-NEW, RUNNING, DONE = 0, 1, 2
-# float options: the streamline kernel's columns up to O_STAG
-NFO = O_STAG + 1
+# the rows of a pathline (schema.py): the streamline kernel's leading columns, read and written
+# by kernel._load_state / _save_state (time is the parameter, arc length the dependent one), and
+# a last-rejection flag of its own; options up to O_STAG; io holds only P_MAXSTEPS
+NF, NI = PATH_FLOAT_STATE.size, PATH_INT_STATE.size
+NFO, NIO = PATH_FLOAT_OPTIONS.size, PATH_INT_OPTIONS.size
+I_LASTREJ = PATH_INT_STATE["I_LASTREJ"]
 
 POINT_ATTRIBUTES = ("time", "arc_length", "speed", "velocity", "vorticity", "vorticity_magnitude",
                     "distance_to_seed")
@@ -137,7 +146,7 @@ def _advance_range(start, stop, active, seeds, release, d, goal, gx, gy, gz, per
     """``_advance`` for the slots start..stop-1 (lines ``active[start:stop]``), one after the
     other; without the GIL, so that threads run ranges side by side (``threads.run_ranges``)."""
     B = out_p.shape[1]
-    k = np.empty((mi[0], 4))  # scratch of one line, reused by the next
+    k = np.empty((mi[M_STAGES], 4))  # scratch of one line, reused by the next
     Q = np.empty((4, mp.shape[1]))
     yt = np.empty(3)
     y = np.empty(4)  # position and arc length
@@ -152,11 +161,11 @@ def _advance_range(start, stop, active, seeds, release, d, goal, gx, gy, gz, per
 @njit(cache=True, _nrt=False)
 def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1, mc, ma,
               mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt, y, y1):
-    S, n_err, fs, kexp = mi[0], mi[1], mi[2], mi[4]
+    S, n_err, fs, kexp = mi[M_STAGES], mi[M_NERR], mi[M_FSAL], mi[M_KEXP]
     q = mp.shape[1]
     safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
     hmin, hmax, stag, maxlen = fo[O_HMIN], fo[O_HMAX], fo[O_STAG], fo[O_MAXLEN]
-    max_steps = io[0]
+    max_steps = io[P_MAXSTEPS]
     expo1 = 1.0 / kexp - 0.75 * beta
     out_n[slot] = 0
     tlim = release[l] + d * fo[O_MAXTIME]
@@ -491,7 +500,9 @@ class _Setup:
         # a particle at rest may move later: no stagnation stop unless asked for explicitly
         fo[O_STAG] = opts.stagnation if opts.stagnation is not None else 0.0
         self.fo = fo
-        self.io = np.array([opts.max_steps], np.int64)
+        io = np.zeros(NIO, np.int64)
+        io[P_MAXSTEPS] = opts.max_steps
+        self.io = io
 
     def check_grid(self, f: Field):
         g = f.grid

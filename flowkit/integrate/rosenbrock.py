@@ -38,6 +38,7 @@ from ..lines import Lines
 from . import kernel as K
 from .kernel import _dense, _fc, _move, _norm3, _put, _relocate, _root
 from .options import TraceOptions
+from .schema import I_NACC, I_NREJ, I_REASON, I_STATUS, ROS_INT_STATE
 from .stiffness import HLAMBDA_STIFF, cell_jacobian, spectral_radius_bound, stiff_update
 from .threads import run_ranges
 
@@ -62,6 +63,9 @@ BHAT = np.array([3.7810903145819369e-01, -9.6042292212423178e-02, 5.0e-01,
 ORDER, ERR_ORDER = 3, 2
 _Q = 3  # Hermite dense output degree
 _OVERFLOW = 3  # line status: its output buffer filled; rerun with a larger one
+# a line's int row (schema.py): the kernel's leading columns, then its stiffness
+NI = ROS_INT_STATE.size
+I_STIFF, I_NSTIFF = ROS_INT_STATE["I_STIFF"], ROS_INT_STATE["I_NSTIFF"]
 
 
 @inline
@@ -127,8 +131,7 @@ def _cross(a, up, c, per, vec, ci, cf, coef):
 @njit(cache=True)
 def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
           si, out_p, out_par, out_n):
-    """Trace line l into out_*[l]; si[l] = (status, reason, n_acc, n_rej, stiff state,
-    stiff steps)."""
+    """Trace line l into out_*[l]; its counts and stiffness into si[l] (``ROS_INT_STATE``)."""
     Bcap = out_p.shape[1]
     param = io[K.P_PARAM]
     max_steps = io[K.P_MAXSTEPS]
@@ -166,9 +169,9 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
     if inside:
         _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
         sp = _rhs(px, py, pz, param, cf, coef, k, np.int64(0))
-    si[l, 0] = K.DONE
+    si[l, I_STATUS] = K.DONE
     if not (inside and math.isfinite(sp)):
-        si[l, 1] = K.R_SEED
+        si[l, I_REASON] = K.R_SEED
         return
     y[0], y[1], y[2], y[3] = px, py, pz, 0.0
     tau = 0.0
@@ -187,7 +190,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
     reason = -1
     while True:
         if out_n[l] >= Bcap:
-            si[l, 0] = _OVERFLOW
+            si[l, I_STATUS] = _OVERFLOW
             return
         speed = k[0, 3] if param == 0 else 1.0 / k[0, 3]
         if not (speed >= stag) or speed == 0.0:
@@ -367,16 +370,16 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
             t_out = tau if param == 0 else y[3]
             s_out = y[3] if param == 0 else tau
             if out_n[l] >= Bcap:
-                si[l, 0] = _OVERFLOW
+                si[l, I_STATUS] = _OVERFLOW
                 return
             _put(out_p, out_par, out_n, l, y[0], y[1], y[2], t_out, s_out)
         if reason >= 0:
             break
-    si[l, 1] = reason
-    si[l, 2] = n_acc
-    si[l, 3] = n_rej
-    si[l, 4] = stiff
-    si[l, 5] = n_stiff
+    si[l, I_REASON] = reason
+    si[l, I_NACC] = n_acc
+    si[l, I_NREJ] = n_rej
+    si[l, I_STIFF] = stiff
+    si[l, I_NSTIFF] = n_stiff
 
 
 @njit(cache=True, nogil=True)
@@ -403,7 +406,7 @@ def run_tasks(setup, seeds, dirs, max_steps):
     (``trace._Setup``); returns (points, t, s, owner, columns) with vertices grouped by task in
     order, as the explicit kernel's passes do, and per-task line_data columns."""
     n = seeds.shape[0]
-    si = np.zeros((n, 6), np.int64)
+    si = np.zeros((n, NI), np.int64)
     cap = int(min(max_steps + 2, 1024))
     todo = np.arange(n)
     pts_of = [np.zeros((0, 3))] * n
@@ -412,10 +415,10 @@ def run_tasks(setup, seeds, dirs, max_steps):
         out_p = np.empty((todo.size, cap, 3))
         out_par = np.empty((todo.size, cap, 2))
         out_n = np.zeros(todo.size, np.int64)
-        ssi = np.zeros((todo.size, 6), np.int64)
+        ssi = np.zeros((todo.size, NI), np.int64)
         _advance(seeds[todo], dirs[todo], *setup.grid, setup.vec, ALPHA, GAMMAS, B, BHAT,
                  setup.fo, setup.io, ssi, out_p, out_par, out_n)
-        done = ssi[:, 0] != _OVERFLOW
+        done = ssi[:, I_STATUS] != _OVERFLOW
         for j in np.flatnonzero(done):
             pts_of[todo[j]] = out_p[j, :out_n[j]]
             par_of[todo[j]] = out_par[j, :out_n[j]]
@@ -426,10 +429,12 @@ def run_tasks(setup, seeds, dirs, max_steps):
     pts = np.concatenate(pts_of) if n else np.zeros((0, 3))
     par = np.concatenate(par_of) if n else np.zeros((0, 2))
     owner = np.repeat(np.arange(n), counts)
-    cols = {"reason": si[:, 1].astype(np.int8), "n_accepted": si[:, 2].astype(np.int32),
-            "n_rejected": si[:, 3].astype(np.int32),
+    cols = {"reason": si[:, I_REASON].astype(np.int8),
+            "n_accepted": si[:, I_NACC].astype(np.int32),
+            "n_rejected": si[:, I_NREJ].astype(np.int32),
             "n_crossing": np.zeros(len(si), np.int32),  # (it ends every step on a face)
-            "stiff": ((si[:, 4] >> 16) & 1).astype(np.int8), "stiff_steps": si[:, 5].astype(np.int32)}
+            "stiff": ((si[:, I_STIFF] >> 16) & 1).astype(np.int8),
+            "stiff_steps": si[:, I_NSTIFF].astype(np.int32)}
     return pts, par[:, 0].copy(), par[:, 1].copy(), owner, cols
 
 

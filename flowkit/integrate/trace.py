@@ -20,6 +20,7 @@ from ..lines import Lines
 from . import attributes as _attributes
 from . import kernel as K
 from . import lanes
+from .launch import FieldArrays, Launch, MethodArrays
 from .methods import get_method
 from .options import STIFF_METHODS, OptionsError, TraceOptions
 from .reasons import REASON_NAMES
@@ -35,8 +36,8 @@ def trace(field: Field, seeds, options: TraceOptions | None = None, *, backend="
           **kw) -> Lines:
     """Streamlines of ``field`` from ``seeds`` ((n, 3) or (3,)); ``kw`` overrides ``options``.
 
-    ``backend``: "numba" (CPU, all cores), "opencl[:PLATFORM[:DEVICE]]", or a callable with the
-    signature of ``kernel.advance``.
+    ``backend``: "numba" (CPU, all cores), "opencl[:PLATFORM[:DEVICE]]", or a callable that
+    advances the lines of a ``launch.Launch`` as ``kernel.advance`` does.
     """
     opts = _options(options, kw)
     seeds = _seeds(seeds)
@@ -169,6 +170,7 @@ class _Setup:
         self.method = m
         self.grid = g.kernel_args()
         self.vec = field.vector
+        self.arrays = FieldArrays.of(field), MethodArrays.of(m)
         ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
         cell = g.min_cell_size
         vtyp = _typical_speed(field)
@@ -220,8 +222,8 @@ class _Setup:
         buf_n = np.zeros(n, np.int64)
         while active.size:
             out_p, out_par, out_n = buf_p[:active.size], buf_par[:active.size], buf_n[:active.size]
-            self.advance(active, seeds, dirs, spacing, phase, *self.grid, self.vec,
-                         *self.method.kernel_arrays(), self.fo, io, sf, si, out_p, out_par, out_n)
+            self.advance(Launch(active, seeds, dirs, spacing, phase, *self.arrays, self.fo, io,
+                                sf, si, out_p, out_par, out_n))
             m = int(out_n.sum())
             part = np.empty((m, 3)), np.empty(m), np.empty(m), np.empty(m, np.int64)
             K.pack(active, out_p, out_par, out_n, *part)  # grouped by line

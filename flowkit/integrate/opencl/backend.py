@@ -1,7 +1,7 @@
 """The OpenCL backend: a drop-in for ``kernel.advance`` that runs the generated kernel on a device.
 
-``OpenCLAdvance(spec)(...)`` takes exactly the arguments of the numba ``kernel.advance`` and has
-the same effect on ``sf``, ``si``, ``out_p``, ``out_par`` and ``out_n``: the host driver in
+``OpenCLAdvance(spec)(launch)`` takes the ``launch.Launch`` the numba ``kernel.advance`` takes and
+has the same effect on ``sf``, ``si``, ``out_p``, ``out_par`` and ``out_n``: the host driver in
 trace.py (vertex budget per line per pass, relaunch of unfinished lines, never truncating) is
 shared by both backends.  The active lines are processed in chunks; each chunk's state is packed,
 uploaded on one queue, advanced on a second and read back on a third, so that on a device with
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import schema
 from . import codegen, vertex
 from .device import select_device, supports_fp64
 
@@ -33,7 +34,7 @@ LOCAL_SIZE = 64
 
 
 class OpenCLAdvance:
-    """Callable with the signature of ``flowkit.integrate.kernel.advance``.
+    """Callable with the signature of ``flowkit.integrate.kernel.advance`` (one ``Launch``).
 
     spec    "opencl[:PLATFORM[:DEVICE]]"
     dtype   "float64" (default where the device has fp64, else float32) or "float32"
@@ -161,22 +162,21 @@ class OpenCLAdvance:
         return curl
 
     # -- one pass ----------------------------------------------------------------------------
-    def __call__(self, *args):
-        self._run(args, None)
+    def __call__(self, launch):
+        self._run(launch, None)
 
-    def _run(self, args, bound):
+    def _run(self, work, bound):
         (active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
-         mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n) = args
+         mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n) = work.arrays()
         cl = self.cl
-        from .. import kernel as K
-
         plan = bound.plan if bound is not None else vertex.Plan((), (), ())
         arrays = (mc, ma, mb, me, me2, mp, mi)
         flags = codegen.Flags(
             method=_method_name(arrays), tableau=codegen.tableau_key(arrays), real=self.real,
-            aware=bool(io[K.P_AWARE]), periodic=bool(np.any(np.asarray(period) > 0)),
+            aware=bool(io[schema.P_AWARE]), periodic=bool(np.any(np.asarray(period) > 0)),
             # crossing bounds the kinks with the start cell's polynomial, which an image lacks
-            cross=bool(io[K.P_AWARE] and io[K.P_CROSS] and mi[3] and not self.image),
+            cross=bool(io[schema.P_AWARE] and io[schema.P_CROSS] and mi[schema.M_ADAPTIVE]
+                       and not self.image),
             uniform=bool(np.all(np.asarray(inv) > 0)), image=self.image,
             attrs=plan.attrs, scalars=len(plan.scalars))
         knl = codegen.kernel(self.ctx, self.device, flags, arrays)
@@ -213,8 +213,8 @@ class OpenCLAdvance:
                     *(np.int32(c.size) for c in (gx, gy, gz)), *scal, fbufs[3]]
             if self.image:
                 args.append(fbufs[4])
-            args += [fo_buf, np.int64(io[K.P_MAXSTEPS]), np.int32(io[K.P_PARAM]),
-                     np.int32(io[K.P_EMIT]), dev_in[4], dev_in[5], *dev_out[:3], np.int32(B)]
+            args += [fo_buf, np.int64(io[schema.P_MAXSTEPS]), np.int32(io[schema.P_PARAM]),
+                     np.int32(io[schema.P_EMIT]), dev_in[4], dev_in[5], *dev_out[:3], np.int32(B)]
             # attribute outputs (built-ins in plan order), then per scalar (field, output), ...
             a_out = iter(dev_out[3:])
             args += [next(a_out) for _ in plan.attrs]
@@ -277,8 +277,8 @@ class _WithAttributes:
         self.plan = plan
         self.n_columns = plan.n_columns
 
-    def __call__(self, *args):
-        self.base._run(args, self)
+    def __call__(self, launch):
+        self.base._run(launch, self)
 
     def point_data(self, t, s, columns):
         return self.plan.point_data(t, s, columns)

@@ -18,9 +18,14 @@ import numpy as np
 from jinja2 import Environment, FileSystemLoader, StrictUndefined
 
 from .. import kernel as K
+from .. import schema
 from .device import CPU_HINT, OpenCLUnavailable
 
 TEMPLATES = Path(__file__).with_name("templates")
+# the C source addresses the state (sf, si) and float options (fo) by the schema's names; the
+# int options reach it as scalar arguments and the method's integers as literals
+SCHEMA_DEFINES = schema.c_defines((schema.FLOAT_STATE, schema.INT_STATE, schema.FLOAT_OPTIONS),
+                                  ("I_STATUS", "P_EMIT", "step event"))
 
 
 @dataclass(frozen=True)
@@ -72,10 +77,12 @@ def _env() -> Environment:
 def render(flags: Flags, arrays) -> str:
     """OpenCL C source for the method's ``kernel_arrays()`` under ``flags``."""
     _c, a, b, e, e2, p, ints = arrays
-    S, n_err, fs, adaptive, kexp, has_e2 = (int(v) for v in ints)
+    S, n_err, fs = int(ints[schema.M_STAGES]), int(ints[schema.M_NERR]), int(ints[schema.M_FSAL])
+    adaptive, has_e2 = bool(ints[schema.M_ADAPTIVE]), bool(ints[schema.M_HASE2])
+    kexp = int(ints[schema.M_KEXP])
     q = p.shape[1]
-    if q > K.QMAX:
-        raise ValueError(f"method {flags.method}: dense output degree {q} > {K.QMAX}")
+    if q > schema.QMAX:
+        raise ValueError(f"method {flags.method}: dense output degree {q} > {schema.QMAX}")
     real = flags.real
 
     def terms(w):
@@ -89,13 +96,15 @@ def render(flags: Flags, arrays) -> str:
         return (f"for (int a = 0; a < 3; a++) yt[a] = y[a] + hs * ({wsum(terms(a[st, :st]))});\n"
                 f"        rhs(yt[0], yt[1], yt[2], param, inc, &G, &C, k, {st} IMGA);")
 
+    # the kernel's tuning constants and reason codes; the columns and codes come from the schema
     consts = SimpleNamespace(**{n: getattr(K, n) for n in dir(K) if n.isupper()
+                                and n not in schema.CONSTANTS
                                 and isinstance(getattr(K, n), (int, float))})
     return _env().get_template("advance.cl.j2").render(
         method=flags.method, real=real, aware=flags.aware, cross=flags.cross, periodic=flags.periodic,
         uniform=flags.uniform, image=flags.image, attrs=flags.attrs, n_scalars=flags.scalars,
-        S=S, q=q, QMAX=K.QMAX, NF=K.NF, NI=K.NI,
-        c=consts, kexp=kexp, adaptive=bool(adaptive), has_e2=bool(has_e2), fs=fs,
+        S=S, q=q, schema=SCHEMA_DEFINES,
+        c=consts, kexp=kexp, adaptive=adaptive, has_e2=has_e2, fs=fs,
         pre_stages=range(1, n_err), post_stages=range(n_err, fs + 1), dense_stages=range(fs + 1, S),
         b_terms=terms(b[:n_err]), e_terms=terms(e[:n_err]), e2_terms=terms(e2[:n_err]),
         p_terms=[terms(p[:, j]) for j in range(q)], wsum=wsum, stage_code=stage_code,
