@@ -386,6 +386,47 @@ def _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef):
 
 
 @inline
+def _through_face(a, up, y, param, gx, gy, gz, period, vec, ci, cf, coef, k):
+    """Into the neighbour cell through the current cell's face on axis a (the upper one if up),
+    k0 = f(y) there: 0 ok, 1 left the domain, 2 a NaN cell."""
+    res = _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef)
+    if res == 0:
+        _fc(y[0], y[1], y[2], param, cf, coef, k, np.int64(0))
+    return res
+
+
+@inline
+def _onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, ci, cf, coef):
+    """Cell-aware, before a step: where the line stands on a face of its cell moving outwards
+    (along d k0), into the neighbour cell; elsewhere back into the cell where rounding left the
+    point a hair outside.  The reason to stop (R_OUT, R_NAN), or -1."""
+    for a in range(3):
+        mv = d * k[0, a]
+        up = y[a] >= cf[3 + a] and mv > 0.0
+        if up or (y[a] <= cf[a] and mv < 0.0):
+            y[a] = cf[3 + a] if up else cf[a]
+            res = _through_face(a, up, y, param, gx, gy, gz, period, vec, ci, cf, coef, k)
+            if res != 0:
+                return R_OUT if res == 1 else R_NAN
+        else:
+            y[a] = min(max(y[a], cf[a]), cf[3 + a])
+    return -1
+
+
+@inline
+def _exit_time(d, y, k, cf):
+    """The step (in the line's parameter) at which y + h d k0 leaves the current cell."""
+    t_exit = np.inf
+    for a in range(3):
+        mv = d * k[0, a]
+        if mv > 0.0:
+            t_exit = min(t_exit, (cf[3 + a] - y[a]) / mv)
+        elif mv < 0.0:
+            t_exit = min(t_exit, (y[a] - cf[a]) / -mv)
+    return t_exit
+
+
+@inline
 def _stage_point(ma, k, st, y, hs, yt):
     """yt = y + hs * Σ_m<st ma[st, m] k[m] (position): the three sums advance together over m,
     each adding its terms in the same order as a sum per component would."""
@@ -779,40 +820,25 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 reason = R_MAXSTEPS
                 break
             # where the line stands: on a face moving outwards -> next cell, or out of the domain
-            stop = False
-            for a in range(3):
-                mv = d * k[0, a]
-                if aware:
-                    up = y[a] >= cf[3 + a] and mv > 0.0
-                    if up or (y[a] <= cf[a] and mv < 0.0):
-                        y[a] = cf[3 + a] if up else cf[a]
-                        res = _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef)
-                        if res != 0:
-                            reason = R_OUT if res == 1 else R_NAN
-                            stop = True
-                            break
-                        _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
-                    else:  # rounding may leave the point a hair outside its cell: put it back
-                        y[a] = min(max(y[a], cf[a]), cf[3 + a])
-                elif period[a] == 0.0 and (
-                        (y[a] <= dlo[a] and mv < 0.0) or (y[a] >= dhi[a] and mv > 0.0)):
-                    reason = R_OUT
-                    stop = True
+            if aware:
+                reason = _onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, ci, cf, coef)
+                if reason >= 0:
                     break
-            if stop:
-                break
+            else:
+                for a in range(3):
+                    mv = d * k[0, a]
+                    if period[a] == 0.0 and (
+                            (y[a] <= dlo[a] and mv < 0.0) or (y[a] >= dhi[a] and mv > 0.0)):
+                        reason = R_OUT
+                if reason >= 0:
+                    break
 
             # step size: controller, cell cap (or a step across faces), parameter limit
             hs = h
             long = False
             t_exit = np.inf
             if aware:  # (fixed steps too: their stages would extend the cell's polynomial far out)
-                for a in range(3):
-                    mv = d * k[0, a]
-                    if mv > 0.0:
-                        t_exit = min(t_exit, (cf[3 + a] - y[a]) / mv)
-                    elif mv < 0.0:
-                        t_exit = min(t_exit, (y[a] - cf[a]) / -mv)
+                t_exit = _exit_time(d, y, k, cf)
                 cap = cellfac * t_exit
                 if cap > 0.0 and abs(hs) > cap:
                     if cross and kwait == 0 and hk > KINK_CELLS * cap:
@@ -1045,14 +1071,12 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 hit_lim = False
                 if ev == EV_FACE:
                     # through the face (whatever the velocity there says); start afresh in the new cell
-                    res = _move_axis(ev_axis, ev_face == cf[3 + ev_axis], gx, gy, gz, period, vec, ci, cf,
-                                     coef)
+                    res = _through_face(ev_axis, ev_face == cf[3 + ev_axis], y, param, gx, gy, gz,
+                                        period, vec, ci, cf, coef, k)
                     if res == 1:
                         ev = EV_BOUNDARY
                     elif res == 2:
                         reason = R_NAN
-                    else:
-                        _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
             if ev == EV_BOUNDARY:
                 reason = R_OUT
             elif ev == EV_DEPLIM:

@@ -13,12 +13,13 @@ The dependent parameter (arc length in time mode, time in arc-length mode) is th
 component, linearised with its exact gradient (the 4x4 W is block triangular, so still one
 3x3 inverse per step).  Dense output: cubic Hermite of (y0, f0, y1, f1), order 3 like the method.
 
-The driver reuses the numba kernel's pieces (cell location ``_relocate``, face crossing
-``_move``, right-hand side ``_fc``, dense evaluation and event roots ``_dense``/``_root``, vertex
+The driver reuses the numba kernel's pieces (cell location ``_relocate``, the move onto the next
+cell ``_onto_next_cell``/``_through_face``, the cell's exit ``_exit_time``, right-hand side
+``_fc``, dense evaluation and event roots ``_dense``/``_root``, the reject rule ``_retry``, vertex
 output ``_put``) and its option arrays (``trace._Setup``); it is always cell-aware, and its
 termination follows the kernel's rules and reason codes.  Its step loop mirrors the kernel's,
-because the kernel's loop has no hook for another step formula (see docs/precision.md,
-"Sharing one loop", for the refactor that would let both share one loop).
+because the kernel's loop has no hook for another step formula (docs/precision.md, "What the
+two loops share").
 
 Per line it also records the stiffness it met: ``stiff_steps`` (accepted steps with
 h ρ(J) > 3.25, steps an explicit DP5 step of that size would be unstable for; ρ bounded by the
@@ -36,7 +37,7 @@ from ..fields import Field
 from ..jit import inline
 from ..lines import Lines
 from . import kernel as K
-from .kernel import _dense, _fc, _move, _norm3, _put, _relocate, _root
+from .kernel import _dense, _fc, _norm3, _put, _relocate, _root
 from .options import TraceOptions
 from .schema import I_NACC, I_NREJ, I_REASON, I_STATUS, ROS_INT_STATE
 from .stiffness import HLAMBDA_STIFF, cell_jacobian, spectral_radius_bound, stiff_update
@@ -113,21 +114,6 @@ def _inv3(M, Mi):
     return True
 
 
-# The kernel's cell-aware right-hand side and face crossing, compiled once and called: inlined
-# (as the kernel's loop has them) at each of _line's call sites, they were typed and lowered
-# once per site, seconds of compilation on a fresh machine.
-@njit(cache=True, no_cpython_wrapper=True)
-def _rhs(px, py, pz, param, cf, coef, k, row):
-    """``kernel._f`` of a cell-aware line: the current cell's polynomial into k[row]; |v|."""
-    return _fc(px, py, pz, param, cf, coef, k, row)
-
-
-@njit(cache=True, no_cpython_wrapper=True)
-def _cross(a, up, c, per, vec, ci, cf, coef):
-    """``kernel._move``: through the current cell's face on axis a (0 ok, 1 out, 2 NaN)."""
-    return _move(a, up, c, per, vec, ci, cf, coef)
-
-
 @njit(cache=True)
 def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
           si, out_p, out_par, out_n):
@@ -168,7 +154,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
     sp = np.nan
     if inside:
         _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
-        sp = _rhs(px, py, pz, param, cf, coef, k, np.int64(0))
+        sp = _fc(px, py, pz, param, cf, coef, k, np.int64(0))
     si[l, I_STATUS] = K.DONE
     if not (inside and math.isfinite(sp)):
         si[l, I_REASON] = K.R_SEED
@@ -199,31 +185,12 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
         if n_acc + n_rej >= max_steps:
             reason = K.R_MAXSTEPS
             break
-        stop = False
-        for a in range(3):  # on a face moving outwards: next cell, or out of the domain
-            c = gx if a == 0 else (gy if a == 1 else gz)
-            mv = d * k[0, a]
-            up = y[a] >= cf[3 + a] and mv > 0.0
-            if up or (y[a] <= cf[a] and mv < 0.0):
-                y[a] = cf[3 + a] if up else cf[a]
-                res = _cross(a, up, c, period[a], vec, ci, cf, coef)
-                if res != 0:
-                    reason = K.R_OUT if res == 1 else K.R_NAN
-                    stop = True
-                    break
-                _rhs(y[0], y[1], y[2], param, cf, coef, k, np.int64(0))
-            else:
-                y[a] = min(max(y[a], cf[a]), cf[3 + a])
-        if stop:
+        # on a face moving outwards: next cell, or out of the domain
+        reason = K._onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, ci, cf, coef)
+        if reason >= 0:
             break
         hs = h
-        t_exit = np.inf
-        for a in range(3):
-            mv = d * k[0, a]
-            if mv > 0.0:
-                t_exit = min(t_exit, (cf[3 + a] - y[a]) / mv)
-            elif mv < 0.0:
-                t_exit = min(t_exit, (y[a] - cf[a]) / -mv)
+        t_exit = K._exit_time(d, y, k, cf)
         cap = cellfac * t_exit
         if cap > 0.0 and abs(hs) > cap:
             hs = d * cap
@@ -248,7 +215,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
                     for m in range(st):
                         acc += alpha[st, m] * kk[m, a]
                     yt[a] = y[a] + acc
-                _rhs(yt[0], yt[1], yt[2], param, cf, coef, k, st)
+                _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
             for a in range(4):  # h f(Y_i) + h J Σ γ_ij k_j (J extended by g as its 4th row)
                 acc = 0.0
                 for m in range(st):
@@ -278,7 +245,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
             err = math.sqrt(err / 3.0)
             finite = math.isfinite(err)
         if finite:  # f(y1): the next step's f0 and the Hermite end slope
-            _rhs(y1[0], y1[1], y1[2], param, cf, coef, k, np.int64(4))
+            _fc(y1[0], y1[1], y1[2], param, cf, coef, k, np.int64(4))
             finite = math.isfinite(k[4, 0] + k[4, 1] + k[4, 2] + k[4, 3])
         if not finite or err > 1.0:  # NaN data met (a stage, or f(y1)), or an error too large
             n_rej += 1
@@ -351,16 +318,13 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
             hit_lim = False
             if ev == K.EV_FACE:
                 y[ev_axis] = ev_face
-                c = gx if ev_axis == 0 else (gy if ev_axis == 1 else gz)
                 # typed: numba's SSA form gives ev_axis its literal -1 on one path
-                res = _cross(np.int64(ev_axis), ev_face == cf[3 + ev_axis], c, period[ev_axis],
-                             vec, ci, cf, coef)
+                res = K._through_face(np.int64(ev_axis), ev_face == cf[3 + ev_axis], y, param, gx,
+                                      gy, gz, period, vec, ci, cf, coef, k)
                 if res == 1:
                     reason = K.R_OUT
                 elif res == 2:
                     reason = K.R_NAN
-                else:
-                    _rhs(y[0], y[1], y[2], param, cf, coef, k, np.int64(0))
             else:
                 reason = r_dep
         if hit_lim:
