@@ -163,3 +163,23 @@ def test_vorticity_follows_the_rotation_rate_in_time():
     np.testing.assert_allclose(w[:, :2], 0.0, atol=1e-12)
     np.testing.assert_allclose(w[:, 2], want, rtol=1e-12)
     np.testing.assert_allclose(lines.point_data["vorticity_magnitude"], want, rtol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["dopri5", "dop853", "bs23", "cashkarp"])
+def test_steady_series_steps_as_the_streamline_kernel(method):
+    """Two equal snapshots: a pathline is the streamline of the field, and the two kernels share
+    the step's end, its error norm (DOP853's with its second estimate), the reject rule and the
+    controller, so they take the same steps to the same end (to rounding: the velocity is
+    evaluated in another order)."""
+    import flowkit
+
+    steady = UnsteadyRotation(omega0=1.0, omega1=0.0)
+    box = [[-2, 2], [-2, 2], [-1, 1]]
+    series = steady.to_series([0.0, 10.0], shape=5, bounds=box)
+    seeds = np.random.default_rng(1).uniform(-1.0, 1.0, (20, 3)) * [1, 1, 0.5]
+    kw = {"method": method, "rtol": 1e-7, "max_time": 3.0}
+    path = P.pathlines(series, seeds, np.zeros(20), **kw)
+    stream = flowkit.trace(steady.to_field(5, bounds=box), seeds, cell_aware=False, **kw)
+    np.testing.assert_array_equal(path.line_data["n_accepted"], stream.line_data["n_accepted"])
+    np.testing.assert_allclose(path.points[path.offsets[1:] - 1],
+                               stream.points[stream.offsets[1:] - 1], rtol=0, atol=1e-12)

@@ -578,6 +578,53 @@ def _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1):
 
 
 @inline
+def _step_end(y, k, hs, mb, me, me2, n_err, adaptive, has_e2, fo, y1):
+    """The end of a step hs from y with the stages k: y1 = y + hs Σ b_m k_m (position into y1,
+    the dependent parameter returned) and, adaptive, the error norm: the RMS over the position
+    of the embedded estimate scaled by atol + rtol max(|y|, |y1|) (with DOP853's second
+    estimate, Hairer's |e5|² / sqrt(|e5|² + 0.01 |e3|²)).  (dep1, err, all finite).  Shared
+    by the streamline and pathline kernels."""
+    finite = True
+    e5 = 0.0
+    e3 = 0.0
+    dep1 = 0.0
+    for a in range(4):
+        acc = 0.0
+        for m in range(n_err):
+            acc += mb[m] * k[m, a]
+        v1 = y[a] + hs * acc
+        if not math.isfinite(v1):
+            finite = False
+        if a < 3:
+            y1[a] = v1
+        else:
+            dep1 = v1
+        if adaptive and a < 3:
+            sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(v1))
+            ea = 0.0
+            for m in range(n_err):
+                ea += me[m] * k[m, a]
+            e5 += (ea / sc) ** 2
+            if has_e2:  # (e3 stays 0 without a second estimate: me2 is all zeros then)
+                eb = 0.0
+                for m in range(n_err):
+                    eb += me2[m] * k[m, a]
+                e3 += (eb / sc) ** 2
+    err = 0.0
+    if adaptive:
+        if has_e2:
+            den = e5 + 0.01 * e3
+            err = 0.0 if den == 0.0 else abs(hs) * e5 / math.sqrt(den * 3.0)
+        else:
+            err = abs(hs) * math.sqrt(e5 / 3.0)
+        if finite and not (e5 + e3 > 1e-250 and e5 + e3 < 1e250):
+            err = _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1)  # (huge speeds)
+        if not math.isfinite(err):
+            finite = False
+    return dep1, err, finite
+
+
+@inline
 def _retry(hs, err, nan, hmin, safety, facmin, expo1):
     """The step after a rejected step hs: a quarter of it after NaN data (``nan``: a stage or y1
     met a NaN cell, or a zero speed in arc-length mode), else the controller's cut for the error
@@ -881,51 +928,8 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                     _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
                 else:
                     _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
-            y1x = y[0]
-            y1y = y[1]
-            y1z = y[2]
-            err = 0.0
-            finite = True
-            e5 = 0.0
-            e3 = 0.0
-            dep1 = 0.0
-            for a in range(4):
-                acc = 0.0
-                for m in range(n_err):
-                    acc += mb[m] * k[m, a]
-                v1 = y[a] + hs * acc
-                if not math.isfinite(v1):
-                    finite = False
-                if a == 0:
-                    y1x = v1
-                elif a == 1:
-                    y1y = v1
-                elif a == 2:
-                    y1z = v1
-                else:
-                    dep1 = v1
-                if adaptive and a < 3:
-                    sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(v1))
-                    ea = 0.0
-                    for m in range(n_err):
-                        ea += me[m] * k[m, a]
-                    e5 += (ea / sc) ** 2
-                    if has_e2:  # (e3 stays 0 without a second estimate: me2 is all zeros then)
-                        eb = 0.0
-                        for m in range(n_err):
-                            eb += me2[m] * k[m, a]
-                        e3 += (eb / sc) ** 2
-            y1[0], y1[1], y1[2] = y1x, y1y, y1z
-            if adaptive:
-                if has_e2:  # Hairer's DOP853 estimate: |e5|^2 / sqrt(|e5|^2 + 0.01 |e3|^2)
-                    den = e5 + 0.01 * e3
-                    err = 0.0 if den == 0.0 else abs(hs) * e5 / math.sqrt(den * 3.0)
-                else:
-                    err = abs(hs) * math.sqrt(e5 / 3.0)
-                if finite and not (e5 + e3 > 1e-250 and e5 + e3 < 1e250):
-                    err = _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1)
-                if not math.isfinite(err):
-                    finite = False
+            dep1, err, finite = _step_end(y, k, hs, mb, me, me2, n_err, adaptive, has_e2, fo, y1)
+            y1x, y1y, y1z = y1[0], y1[1], y1[2]
             if finite and not (adaptive and err > 1.0):  # the remaining stages up to f(y1)
                 for st in range(n_err, fs + 1):
                     _stage_point(ma, k, st, y, hs, yt)

@@ -49,6 +49,7 @@ from .kernel import (
     _root,
     _save_state,
     _stage_point,
+    _step_end,
 )
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES, Reason
@@ -58,7 +59,9 @@ from .schema import (
     I_NREJ,
     I_REASON,
     I_STATUS,
+    M_ADAPTIVE,
     M_FSAL,
+    M_HASE2,
     M_KEXP,
     M_NERR,
     M_STAGES,
@@ -142,7 +145,7 @@ def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
 
 @njit(cache=True, nogil=True)
 def _advance_range(start, stop, active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
-                   t0, t1, mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n):
+                   t0, t1, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n):
     """``_advance`` for the slots start..stop-1 (lines ``active[start:stop]``), one after the
     other; without the GIL, so that threads run ranges side by side (``threads.run_ranges``)."""
     B = out_p.shape[1]
@@ -153,15 +156,16 @@ def _advance_range(start, stop, active, seeds, release, d, goal, gx, gy, gz, per
     y1 = np.empty(4)
     for n in range(start, stop):
         _run_line(active[n], n, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
-                  mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt,
+                  mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt,
                   y, y1)
 
 
 # without NRT (no reference counting in the step loop), as kernel._run_line
 @njit(cache=True, _nrt=False)
 def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1, mc, ma,
-              mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt, y, y1):
+              mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt, y, y1):
     S, n_err, fs, kexp = mi[M_STAGES], mi[M_NERR], mi[M_FSAL], mi[M_KEXP]
+    adaptive, has_e2 = mi[M_ADAPTIVE] != 0, mi[M_HASE2] != 0
     q = mp.shape[1]
     safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
     hmin, hmax, stag, maxlen = fo[O_HMIN], fo[O_HMAX], fo[O_STAG], fo[O_MAXLEN]
@@ -239,22 +243,7 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
             if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
                              v0, v1, t0, t1, k, st):
                 k[st, 0] = np.nan
-        e5 = 0.0
-        finite = True
-        for a in range(4):
-            acc = 0.0
-            ea = 0.0
-            for m in range(n_err):
-                acc += mb[m] * k[m, a]
-                ea += me[m] * k[m, a]
-            y1[a] = y[a] + hs * acc
-            if not math.isfinite(y1[a]):
-                finite = False
-            if a < 3:
-                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
-                e5 += (ea / sc) ** 2
-        err = abs(hs) * math.sqrt(e5 / 3.0)
-        finite = finite and math.isfinite(err)
+        y1[3], err, finite = _step_end(y, k, hs, mb, me, me2, n_err, adaptive, has_e2, fo, y1)
         if finite and err <= 1.0:  # stages up to f(y1) and those only the dense output uses
             for st in range(n_err, S):
                 _stage_point(ma, k, st, y, hs, yt)
@@ -345,12 +334,12 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
 
 
 def _advance(active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
-             mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n):
+             mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n):
     """Advance the lines ``active`` to ``goal`` (or their end) inside one snapshot interval, or
     until each has written B vertices; the lines go to numba's thread count of Python threads
     (``threads.run_ranges``): a prange loop around the kernel cost seconds more to compile."""
     run_ranges(_advance_range, active.size, active, seeds, release, d, goal, gx, gy, gz, period,
-               inv, v0, v1, t0, t1, mc, ma, mb, me, mp, mi, fo, io, sf, si, out_p, out_t, out_s,
+               inv, v0, v1, t0, t1, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s,
                out_n)
 
 
@@ -386,7 +375,7 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
     si = np.zeros((n, NI), np.int64)
     chunks = []  # (owner, points, time, arc length, attributes) per launch
     method = opts.method_obj
-    mc, ma, mb, me, _e2, mp, mi = method.kernel_arrays()
+    mc, ma, mb, me, me2, mp, mi = method.kernel_arrays()
     held: dict[int, Field] = {}
     curls: dict[int, np.ndarray] = {}  # node curl of a held snapshot, when vorticity is asked for
     vort = any(a in ("vorticity", "vorticity_magnitude") for a in opts.attributes)
@@ -420,7 +409,7 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
             out_s = np.empty((active.size, B))
             out_n = np.zeros(active.size, np.int64)
             _advance(active, seeds, release, d, goal, *setup.grid, fa.vector, fb.vector, ta, tb,
-                     mc, ma, mb, me, mp, mi, setup.fo, setup.io, sf, si, out_p, out_t, out_s, out_n)
+                     mc, ma, mb, me, me2, mp, mi, setup.fo, setup.io, sf, si, out_p, out_t, out_s, out_n)
             keep = np.arange(B)[None, :] < out_n[:, None]
             owner = np.repeat(active, out_n)
             pts, tv = out_p[keep], out_t[keep]
