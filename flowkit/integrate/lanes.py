@@ -65,21 +65,20 @@ from .kernel import (
     _put,
 )
 from .kernel import advance as advance_one_by_one
+from .methods import LOCKSTEP_STAGES as SMAX  # stages of the eligible methods
+from .methods import lockstep_tableau
 
 W = 32  # lines per group: enough cache misses in flight to cover the memory latency
-SMAX = 5  # stages of the eligible methods (rk4 and euler with their f(y1) stage)
 
 
 def eligible(period, inv, ma, mb, mi, io) -> bool:
-    """True where the lock-step path applies: a fixed-step method of at most SMAX stages whose
-    last stage evaluates f(y1) with y1's own weights (its stage point is y1), plain stepping, a
-    vertex per step, no stiffness test, every axis uniform and bounded.  Plain Python: it runs
-    once a launch, and ``advance`` compiles the lock-step only for launches that pass."""
-    if mi[3] != 0 or mi[0] > SMAX or io[P_AWARE] != 0 or io[P_EMIT] != EMIT_STEPS \
+    """True where the lock-step path applies: a method the registry calls lock-step
+    (``methods.lockstep_tableau``: fixed step, at most SMAX stages, its f(y1) stage at y1),
+    plain stepping, a vertex per step, no stiffness test, every axis uniform and bounded.  Plain
+    Python: it runs once a launch, and ``advance`` compiles the lock-step only for launches that
+    pass."""
+    if not lockstep_tableau(ma, mb, mi) or io[P_AWARE] != 0 or io[P_EMIT] != EMIT_STEPS \
             or io[P_STIFF] >= 0:
-        return False
-    n_err, fs = int(mi[1]), int(mi[2])
-    if fs != n_err or np.any(ma[fs, :n_err] != mb[:n_err]):
         return False
     return bool(np.all(period == 0.0) and np.all(inv > 0.0))
 

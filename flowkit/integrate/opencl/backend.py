@@ -178,7 +178,7 @@ class OpenCLAdvance:
             # crossing bounds the kinks with the start cell's polynomial, which an image lacks
             cross=bool(io[K.P_AWARE] and io[K.P_CROSS] and mi[3] and not self.image),
             uniform=bool(np.all(np.asarray(inv) > 0)), image=self.image,
-            attrs=plan.attrs, scalars=len(plan.scalars))
+            attrs=plan.attrs, scalars=len(plan.scalars), stiff_stage=int(io[K.P_STIFF]))
         knl = codegen.kernel(self.ctx, self.device, flags, arrays)
         fbufs = self._field_buffers(gx, gy, gz, period, vec)
         extra = [] if bound is None else self._attribute_args(bound.field, plan, flags, arrays,
