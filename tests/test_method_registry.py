@@ -143,10 +143,17 @@ def test_user_fixed_step_tableau_runs_lock_step_bit_identical_to_the_scalar_kern
     assert lock.equals(one) and lock.line_data["n_accepted"].min() >= 200
 
 
-def test_generated_option_docs_and_cli_choices():
+def test_generated_option_docs_and_cli_choices(capsys):
     from flowkit.cli import main
 
     for name, m in M.REGISTRY.items():
         assert f"{name}  " in TraceOptions.__doc__ and m.description in TraceOptions.__doc__
     with pytest.raises(SystemExit):
+        main(["trace", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "{" + ",".join(M.REGISTRY) + "}" in text
+    for name, m in M.REGISTRY.items():
+        assert f"{name}: {M.describe(m)}" in text
+    with pytest.raises(SystemExit):
         main(["trace", "x.npz", "-o", "y.h5", "--method", "nope"])
+    assert "invalid choice: 'nope'" in capsys.readouterr().err
