@@ -157,3 +157,22 @@ def test_generated_option_docs_and_cli_choices(capsys):
     with pytest.raises(SystemExit):
         main(["trace", "x.npz", "-o", "y.h5", "--method", "nope"])
     assert "invalid choice: 'nope'" in capsys.readouterr().err
+
+
+def test_user_rosenbrock_coefficients_run_on_the_rosenbrock_driver():
+    """The driver steps the entry's own data: ros34pw2's coefficients under another name trace
+    ros34pw2's lines exactly; with γ halved the same α, Γ, b miss the order-2 condition and
+    check() refuses them."""
+    ros = M.get_method("ros34pw2")
+    field = SolidBodyRotation().to_field(shape=9)
+    seeds = [[0.5, 0.1, 0.0], [0.2, -0.4, 0.3]]
+    kw = {"rtol": 1e-6, "atol": 1e-6, "max_time": 2.0}
+    ref = flowkit.trace(field, seeds, method="ros34pw2", **kw)
+    mine = RosenbrockMethod("myros", ros.order, ros.err_order, ros.gamma, ros.alpha, ros.gammas,
+                            ros.b, ros.bhat, description="a copy")
+    got = flowkit.trace(field, seeds, method=mine, **kw)
+    assert got.attrs["method"] == "myros"
+    np.testing.assert_array_equal(got.points, ref.points)
+    other = RosenbrockMethod("myros", 3, 2, 0.5 * ros.gamma, ros.alpha, ros.gammas, ros.b, ros.bhat)
+    with pytest.raises(MethodError, match="myros: b miss the order condition order 2"):
+        other.check()
