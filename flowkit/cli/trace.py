@@ -14,8 +14,7 @@ import time
 
 def register(subparsers) -> None:
     from ..distributed.cli import add_scale_options
-    from ..integrate.methods import METHODS
-    from ..integrate.options import STIFF_METHODS
+    from ..integrate.methods import REGISTRY, describe
     from ..integrate.seeds import SPEC_HELP
 
     p = subparsers.add_parser("trace", help="trace streamlines through a field into an HDF5 file",
@@ -24,7 +23,9 @@ def register(subparsers) -> None:
     p.add_argument("-o", "--output", required=True, help="lines HDF5 file to write (atomically)")
     p.add_argument("--vector", default="U", help="name of the vector array (default U)")
     p.add_argument("--seeds", default="random:1000", help=f"seed spec: {SPEC_HELP} (default random:1000)")
-    p.add_argument("--method", default="dopri5", choices=sorted(METHODS) + list(STIFF_METHODS))
+    p.add_argument("--method", default="dopri5", choices=list(REGISTRY),
+                   help="integration method (default dopri5): " + "; ".join(
+                       f"{n}: {describe(m)}" for n, m in REGISTRY.items()))
     p.add_argument("--rtol", type=float, default=1e-6)
     p.add_argument("--atol", type=float, help="absolute tolerance (default: rtol x grid extent)")
     p.add_argument("--step", type=float, help="initial step (adaptive) or fixed step (rk4, euler)")

@@ -35,6 +35,8 @@ from numba import njit, prange
 from ..jit import inline
 from .kernel import R_MAXLEN, R_MAXTIME, _prefetch, _put
 from .kernel import advance as advance_one_by_one
+from .methods import LOCKSTEP_STAGES as SMAX  # stages of the eligible methods
+from .methods import lockstep_tableau
 from .schema import (
     DONE,
     EMIT_STEPS,
@@ -43,10 +45,7 @@ from .schema import (
     I_NREJ,
     I_REASON,
     I_STATUS,
-    M_ADAPTIVE,
     M_FSAL,
-    M_NERR,
-    M_STAGES,
     O_HMAX,
     O_MAXLEN,
     O_MAXTIME,
@@ -69,19 +68,16 @@ from .schema import (
 )
 
 W = 32  # lines per group: enough cache misses in flight to cover the memory latency
-SMAX = 5  # stages of the eligible methods (rk4 and euler with their f(y1) stage)
 
 
 def eligible(period, inv, ma, mb, mi, io) -> bool:
-    """True where the lock-step path applies: a fixed-step method of at most SMAX stages whose
-    last stage evaluates f(y1) with y1's own weights (its stage point is y1), plain stepping, a
-    vertex per step, no stiffness test, every axis uniform and bounded.  Plain Python: it runs
-    once a launch, and ``advance`` compiles the lock-step only for launches that pass."""
-    if mi[M_ADAPTIVE] != 0 or mi[M_STAGES] > SMAX or io[P_AWARE] != 0 \
-            or io[P_EMIT] != EMIT_STEPS or io[P_STIFF] >= 0:
-        return False
-    n_err, fs = int(mi[M_NERR]), int(mi[M_FSAL])
-    if fs != n_err or np.any(ma[fs, :n_err] != mb[:n_err]):
+    """True where the lock-step path applies: a method the registry calls lock-step
+    (``methods.lockstep_tableau``: fixed step, at most SMAX stages, its f(y1) stage at y1),
+    plain stepping, a vertex per step, no stiffness test, every axis uniform and bounded.  Plain
+    Python: it runs once a launch, and ``advance`` compiles the lock-step only for launches that
+    pass."""
+    if not lockstep_tableau(ma, mb, mi) or io[P_AWARE] != 0 or io[P_EMIT] != EMIT_STEPS \
+            or io[P_STIFF] >= 0:
         return False
     return bool(np.all(period == 0.0) and np.all(inv > 0.0))
 

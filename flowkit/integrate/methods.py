@@ -1,6 +1,20 @@
-"""Runge–Kutta methods as data: one registry that every backend generates its kernel from.
+"""The method registry: every integration method as data, with what the backends need to run it.
 
-A method is its Butcher tableau plus what the kernels need to run it without special cases:
+An entry is one of three kinds, each with its capabilities (``backends``, ``adaptive``,
+``lockstep``, ``stiffness_stage``, ``resamples``) so that no caller keys anything on a name:
+
+* ``Method``: an explicit Runge–Kutta tableau.  The numba kernel reads its ``kernel_arrays()``
+  and the OpenCL code generator unrolls the same arrays, so a user's tableau runs on both.
+* ``RosenbrockMethod``: a linearly implicit method's coefficients (α, Γ, b, b̂) and the driver
+  that steps it (named ``module:function`` and imported on first use).
+* ``StiffSwitch``: an explicit method whose lines its stiffness test flags are traced again with
+  a Rosenbrock method (``auto``).
+
+``register_method`` validates an entry with its ``check()`` (consistency and order conditions,
+the errors name the coefficient or the condition) and makes it known by name to ``flowkit.trace``,
+``TraceOptions`` and the CLI; ``TraceOptions(method=entry)`` also takes an unregistered entry.
+
+A tableau (``Method``) holds what the kernels need to run it without special cases:
 
 * ``c``, ``a``, ``b``: the tableau, extended so that stage ``fsal_stage`` evaluates f(y1)
   (``a[fsal_stage] == b``, ``c[fsal_stage] == 1``).  Its value is the next step's first stage
@@ -15,15 +29,31 @@ A method is its Butcher tableau plus what the kernels need to run it without spe
   written in the same form.
 * ``order`` of the propagated solution, ``err_order`` of the error estimate; the step-size
   controller uses the exponent 1 / (min(order, err_order) + 1).
+* ``stiffness_stage``: the stage evaluated at c = 1 before the error test that Hairer &
+  Wanner's stiffness test pairs with f(y1) (dopri5: stage 5); None: no test.
+
+``Method.from_butcher`` builds one from a plain Butcher tableau and an optional embedded pair.
 """
 
 from __future__ import annotations
 
+import importlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import order_conditions as oc
 from . import schema
+
+BACKENDS = ("numba", "opencl")
+LOCKSTEP_STAGES = 5  # stages the lock-step path holds (rk4 and euler with their f(y1) stage)
+# the kernels' stiffness test reads these two stages (``stiffness.dp5_hlambda``)
+STIFF_PAIR = (5, 6)
+
+
+class MethodError(ValueError):
+    """A method whose data cannot be run; the message names the method and the coefficient."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -41,10 +71,56 @@ class Method:
     e2: np.ndarray | None = None
     description: str = ""
     aliases: tuple[str, ...] = field(default=())
+    stiffness_stage: int | None = None
+    backends: tuple[str, ...] = BACKENDS
+
+    kind = "explicit"
+    resamples = True  # dense output: vertices at any spacing or count
+    driver = None  # the kernel's passes (trace._Setup.run)
+    retrace = None
+
+    @classmethod
+    def from_butcher(cls, name, c, a, b, b_hat=None, *, order, err_order=None, p=None,
+                     description="", aliases=(), stiffness_stage=None, backends=BACKENDS):
+        """A method from its Butcher tableau (c, a, b) and embedded weights ``b_hat`` (None:
+        fixed step).  A tableau whose last stage is not f(y1) gets that stage appended;
+        dense output ``p`` (rows per stage of the extended tableau) defaults to cubic Hermite.
+        ``err_order`` defaults to order - 1."""
+        c, a, b = (np.asarray(x, float) for x in (c, a, b))
+        s = c.size
+        fsal = s > 1 and c[-1] == 1 and b[-1] == 0 and np.array_equal(a[-1], b)
+        if fsal:
+            f = s - 1
+            n_err = s
+        else:
+            c, a, b, f = _extend(c, a, b)
+            n_err = f
+        if b_hat is None:
+            e = np.zeros(c.size)
+            err_order = 0
+        else:
+            bh = np.zeros(c.size)
+            bh[:len(b_hat)] = b_hat
+            e = b - bh
+            err_order = order - 1 if err_order is None else err_order
+        p = _hermite(b, f) if p is None else np.asarray(p, float)
+        return cls(name, order, err_order, c, a, b, e, p, n_err=n_err, fsal_stage=f,
+                   description=description, aliases=tuple(aliases),
+                   stiffness_stage=stiffness_stage, backends=tuple(backends))
 
     @property
     def adaptive(self) -> bool:
         return self.err_order > 0
+
+    @property
+    def explicit(self) -> Method:
+        """The tableau the explicit kernel runs."""
+        return self
+
+    @property
+    def lockstep(self) -> bool:
+        """The lock-step path (``lanes.py``) can run it on fixed-step plain traces."""
+        return lockstep_tableau(self.a, self.b, self.kernel_arrays()[-1])
 
     @property
     def n_stages(self) -> int:
@@ -71,24 +147,305 @@ class Method:
         return (*arrs, ints)
 
     def check(self, tol: float = 1e-12) -> None:
-        """Consistency of the data: row sums, weights, FSAL stage, dense output at θ = 1."""
+        """Raise MethodError unless the data can run: shapes, explicitness, row sums, the f(y1)
+        stage, the order conditions of b (``order``) and of the embedded weights b − e
+        (``err_order``; with a second estimate e2 each pair is checked for consistency), the
+        dense output at θ = 1, the stiffness stage and the backends."""
+        from .kernel import QMAX
+
+        name = self.name
         s = self.n_stages
-        if self.a.shape != (s, s) or self.b.shape != (s,) or self.e.shape != (s,) or self.p.shape[0] != s:
-            raise ValueError(f"method {self.name}: inconsistent tableau shapes")
-        if np.any(np.triu(self.a) != 0):
-            raise ValueError(f"method {self.name}: tableau is not explicit")
-        bad = np.abs(self.a.sum(axis=1) - self.c).max()
-        if bad > tol:
-            raise ValueError(f"method {self.name}: row sums of a differ from c by {bad:g}")
-        if abs(self.b.sum() - 1) > tol or abs(self.e.sum()) > tol:
-            raise ValueError(f"method {self.name}: weights b must sum to 1 and e to 0")
+        _common(self, "explicit Runge–Kutta")
+        shapes = {"c": (self.c.shape, (s,)), "a": (self.a.shape, (s, s)), "b": (self.b.shape, (s,)),
+                  "e": (self.e.shape, (s,))}
+        if self.e2 is not None:
+            shapes["e2"] = (np.shape(self.e2), (s,))
+        for key, (got, want) in shapes.items():
+            if got != want:
+                raise MethodError(f"method {name}: {key} has shape {got}, {want} for {s} stages")
+        if self.p.ndim != 2 or self.p.shape[0] != s or not 1 <= self.p.shape[1] <= QMAX:
+            raise MethodError(f"method {name}: dense output p has shape {self.p.shape}, needs "
+                              f"({s}, q) with 1 <= q <= {QMAX}")
+        for key in ("c", "a", "b", "e", "e2", "p"):
+            v = getattr(self, key)
+            if v is not None and not np.all(np.isfinite(v)):
+                idx = tuple(int(i) for i in np.argwhere(~np.isfinite(v))[0])
+                raise MethodError(f"method {name}: {key}{list(idx)} = {v[idx]!r} is not finite")
+        upper = np.argwhere(np.triu(self.a) != 0)
+        if upper.size:
+            i, j = upper[0]
+            raise MethodError(f"method {name}: a[{i}, {j}] = {self.a[i, j]:g} is on or above the "
+                              "diagonal: the tableau must be explicit")
+        for i in range(s):
+            if abs(self.a[i].sum() - self.c[i]) > tol:
+                raise MethodError(f"method {name}: row a[{i}, :] sums to {self.a[i].sum():.12g}, "
+                                  f"c[{i}] = {self.c[i]:.12g}")
+        if not (0 < self.n_err <= s and self.n_err - 1 <= self.fsal_stage < s):
+            raise MethodError(f"method {name}: n_err = {self.n_err} and fsal_stage = "
+                              f"{self.fsal_stage} must satisfy 0 < n_err <= fsal_stage + 1 <= {s}")
         f = self.fsal_stage
-        if self.c[f] != 1 or np.abs(self.a[f] - self.b).max() > tol or np.any(self.b[f:] != 0):
-            raise ValueError(f"method {self.name}: stage {f} must evaluate f(y1)")
-        if np.abs(self.p.sum(axis=1) - self.b).max() > 1e-10:
-            raise ValueError(f"method {self.name}: dense output at θ=1 differs from the solution")
-        if np.any(self.e[self.n_err:] != 0) or np.any(self.b[self.n_err:] != 0):
-            raise ValueError(f"method {self.name}: y1 and the error use only the first n_err stages")
+        if self.c[f] != 1:
+            raise MethodError(f"method {name}: c[{f}] = {self.c[f]:g}, the f(y1) stage "
+                              f"(fsal_stage {f}) needs c = 1")
+        for j in range(s):
+            if abs(self.a[f, j] - self.b[j]) > tol:
+                raise MethodError(f"method {name}: a[{f}, {j}] = {self.a[f, j]:.12g} differs from "
+                                  f"b[{j}] = {self.b[j]:.12g}: stage {f} must evaluate f(y1)")
+        for key in ("b", "e", "e2"):
+            w = getattr(self, key)
+            late = [] if w is None else np.flatnonzero(w[self.n_err:] != 0)
+            if len(late):
+                j = self.n_err + int(late[0])
+                raise MethodError(f"method {name}: {key}[{j}] = {w[j]:g}, y1 and the error use "
+                                  f"the first n_err = {self.n_err} stages only")
+        if not 1 <= self.order <= oc.MAX_RK_ORDER:
+            raise MethodError(f"method {name}: order {self.order}; check() covers orders "
+                              f"1..{oc.MAX_RK_ORDER}")
+        if not 0 <= self.err_order <= oc.MAX_RK_ORDER:
+            raise MethodError(f"method {name}: err_order {self.err_order} out of 0..{oc.MAX_RK_ORDER}")
+        _conditions(name, "b", oc.rk_failures(self.a, self.b, self.order, 1e-10))
+        if self.adaptive:
+            if abs(self.e.sum()) > tol:
+                raise MethodError(f"method {name}: the error weights e sum to {self.e.sum():.3g}, "
+                                  "must be 0 (b and the embedded weights b − e both sum to 1)")
+            if self.e2 is None:
+                _conditions(name, "the embedded weights b − e",
+                            oc.rk_failures(self.a, self.b - self.e, self.err_order, 1e-10))
+            elif abs(self.e2.sum()) > tol:
+                raise MethodError(f"method {name}: the error weights e2 sum to "
+                                  f"{self.e2.sum():.3g}, must be 0")
+        elif np.any(self.e != 0):
+            raise MethodError(f"method {name}: err_order 0 (fixed step) with non-zero error "
+                              "weights e; give err_order")
+        rows = self.p.sum(axis=1)
+        for i in range(s):
+            if abs(rows[i] - self.b[i]) > 1e-10:
+                raise MethodError(f"method {name}: dense output row p[{i}, :] sums to "
+                                  f"{rows[i]:.12g}, b[{i}] = {self.b[i]:.12g} (y(θ = 1) must be y1)")
+        cols = self.p.sum(axis=0)
+        want = np.eye(self.p.shape[1])[0]
+        for j in range(self.p.shape[1]):
+            if abs(cols[j] - want[j]) > 1e-10:
+                raise MethodError(f"method {name}: dense output column p[:, {j}] sums to "
+                                  f"{cols[j]:.12g}, needs {want[j]:g} (y(θ) consistent: "
+                                  "Σ_i p[i, :] = (1, 0, ...))")
+        st = self.stiffness_stage
+        if st is not None:
+            if not (1 <= st < self.n_err and self.c[st] == 1):
+                raise MethodError(f"method {name}: stiffness_stage {st} must be a stage before "
+                                  f"the error test (1..{self.n_err - 1}) with c = 1")
+            if (st, f) != STIFF_PAIR:
+                raise MethodError(f"method {name}: the kernels' stiffness test reads stages "
+                                  f"{STIFF_PAIR} (stiffness stage, f(y1)); this tableau has "
+                                  f"({st}, {f}): give stiffness_stage=None")
+
+
+@dataclass(frozen=True, eq=False)
+class RosenbrockMethod:
+    """A Rosenbrock(-W) method: W k_i = h f(y0 + Σ α_ij k_j) + h J Σ_{j<i} γ_ij k_j with
+    W = I − hγJ, y1 = y0 + Σ b_i k_i, error Σ (b_i − b̂_i) k_i.  ``gammas`` is Γ off its
+    diagonal (strictly lower); the diagonal is ``gamma``."""
+
+    name: str
+    order: int
+    err_order: int
+    gamma: float
+    alpha: np.ndarray
+    gammas: np.ndarray
+    b: np.ndarray
+    bhat: np.ndarray
+    description: str = ""
+    aliases: tuple[str, ...] = field(default=())
+    driver: str | Callable = "flowkit.integrate.rosenbrock:run_tasks"
+
+    kind = "rosenbrock"
+    backends = ("numba",)
+    adaptive = True
+    lockstep = False
+    resamples = False  # vertices at its accepted steps
+    stiffness_stage = None
+    explicit = None
+    retrace = None
+
+    def load_driver(self) -> Callable:
+        """driver(method, setup, seeds, dirs, max_steps) -> (points, t, s, owner, columns)."""
+        if callable(self.driver):
+            return self.driver
+        module, _, attr = self.driver.partition(":")
+        return getattr(importlib.import_module(module), attr)
+
+    def check(self, tol: float = 1e-12) -> None:
+        """Raise MethodError unless the coefficients can run: shapes, strictly lower α and Γ,
+        γ > 0, the order conditions of b (``order``) and b̂ (``err_order``), at most order 4."""
+        name = self.name
+        _common(self, "Rosenbrock")
+        s = np.size(self.b)
+        for key, want in (("alpha", (s, s)), ("gammas", (s, s)), ("b", (s,)), ("bhat", (s,))):
+            v = np.asarray(getattr(self, key))
+            if v.shape != want:
+                raise MethodError(f"method {name}: {key} has shape {v.shape}, {want} for {s} stages")
+            if not np.all(np.isfinite(v)):
+                raise MethodError(f"method {name}: {key} has a non-finite coefficient")
+        for key in ("alpha", "gammas"):
+            upper = np.argwhere(np.triu(getattr(self, key)) != 0)
+            if upper.size:
+                i, j = upper[0]
+                raise MethodError(f"method {name}: {key}[{i}, {j}] = {getattr(self, key)[i, j]:g} "
+                                  "on or above the diagonal: must be strictly lower triangular")
+        if not (np.isfinite(self.gamma) and self.gamma > 0):
+            raise MethodError(f"method {name}: gamma = {self.gamma!r} must be positive")
+        for key, p in (("order", self.order), ("err_order", self.err_order)):
+            if not 1 <= p <= oc.MAX_ROS_ORDER:
+                raise MethodError(f"method {name}: {key} {p}; check() covers Rosenbrock orders "
+                                  f"1..{oc.MAX_ROS_ORDER}")
+        G = self.gammas + self.gamma * np.eye(s)
+        _conditions(name, "b", oc.ros_failures(self.alpha, G, self.b, self.order, 1e-10))
+        _conditions(name, "bhat", oc.ros_failures(self.alpha, G, self.bhat, self.err_order, 1e-10))
+        if not (callable(self.driver) or ":" in str(self.driver)):
+            raise MethodError(f"method {name}: driver {self.driver!r} must be a callable or "
+                              "'module:function'")
+
+
+@dataclass(frozen=True, eq=False)
+class StiffSwitch:
+    """Trace with the explicit method ``first``; the lines its stiffness test flags are traced
+    again from their seeds with ``stiff`` (line_data column named after it marks them)."""
+
+    name: str
+    first: str
+    stiff: str
+    description: str = ""
+    aliases: tuple[str, ...] = field(default=())
+
+    kind = "switch"
+    adaptive = True
+    lockstep = False
+    resamples = False  # the retraced lines have vertices at their steps
+    driver = None
+
+    @property
+    def explicit(self) -> Method:
+        return get_method(self.first)
+
+    @property
+    def retrace(self):
+        return get_method(self.stiff)
+
+    @property
+    def stiffness_stage(self) -> int | None:
+        return self.explicit.stiffness_stage
+
+    @property
+    def backends(self) -> tuple[str, ...]:
+        return self.explicit.backends
+
+    def check(self, tol: float = 1e-12) -> None:
+        _common(self, "switch")
+        first = get_method(self.first)
+        if first.kind != "explicit" or first.stiffness_stage is None:
+            raise MethodError(f"method {self.name}: first = {self.first!r} must be an explicit "
+                              "method with a stiffness_stage (one that flags stiff lines)")
+        if get_method(self.stiff).driver is None:
+            raise MethodError(f"method {self.name}: stiff = {self.stiff!r} must be a method with "
+                              "its own driver (a Rosenbrock method)")
+
+
+def _common(m, kind: str) -> None:
+    if not (isinstance(m.name, str) and m.name and m.name == m.name.lower()
+            and m.name.replace("_", "").replace("-", "").isalnum()):
+        raise MethodError(f"{kind} method name {m.name!r} must be a lower-case word "
+                          "(letters, digits, - and _)")
+    bad = set(m.backends) - set(BACKENDS)
+    if bad or not m.backends:
+        raise MethodError(f"method {m.name}: backends {tuple(m.backends)!r}; choose from {BACKENDS}")
+
+
+def _conditions(name: str, what: str, failures: list[str]) -> None:
+    if failures:
+        more = f" (and {len(failures) - 1} more)" if len(failures) > 1 else ""
+        raise MethodError(f"method {name}: {what} miss the order condition {failures[0]}{more}")
+
+
+def lockstep_tableau(a, b, ints) -> bool:
+    """The method part of ``lanes.eligible``: a fixed-step method of at most LOCKSTEP_STAGES
+    stages whose f(y1) stage follows the error stages with y1's own weights (so that its stage
+    point is y1)."""
+    if ints[schema.M_ADAPTIVE] != 0 or ints[schema.M_STAGES] > LOCKSTEP_STAGES:
+        return False
+    n_err, fs = int(ints[schema.M_NERR]), int(ints[schema.M_FSAL])
+    return fs == n_err and bool(np.all(a[fs, :n_err] == b[:n_err]))
+
+
+REGISTRY: dict = {}  # every entry by name, in registration order
+METHODS: dict[str, Method] = {}  # the explicit tableaux among them
+_ALIASES: dict[str, str] = {}
+
+
+def register_method(m, *, replace: bool = False):
+    """Validate ``m`` (a Method, RosenbrockMethod or StiffSwitch) with its ``check()`` and make it
+    known by its name and aliases; ``replace`` lets it take over an entry of the same name.
+    Returns ``m``."""
+    if not isinstance(m, (Method, RosenbrockMethod, StiffSwitch)):
+        raise TypeError(f"register_method takes a Method, RosenbrockMethod or StiffSwitch, got "
+                        f"{type(m).__name__}")
+    m.check()
+    old = REGISTRY.get(m.name)
+    if old is not None and old is not m and not replace:
+        raise MethodError(f"method name {m.name!r} is registered already ({old.description}); "
+                          "choose another name or pass replace=True")
+    for al in m.aliases:
+        owner = _ALIASES.get(al, al if al in REGISTRY else None)
+        if owner is not None and owner != m.name:
+            raise MethodError(f"method {m.name}: alias {al!r} names method {owner} already")
+    if old is not None:
+        for al in old.aliases:
+            _ALIASES.pop(al, None)
+        METHODS.pop(m.name, None)
+    REGISTRY[m.name] = m
+    if m.kind == "explicit":
+        METHODS[m.name] = m
+    _ALIASES.update({al: m.name for al in m.aliases})
+    return m
+
+
+def get_method(name):
+    """Registry entry by name (case-insensitive, aliases such as 'rk45' accepted); an entry
+    object is returned as it is."""
+    if isinstance(name, (Method, RosenbrockMethod, StiffSwitch)):
+        return name
+    key = str(name).lower()
+    key = _ALIASES.get(key, key)
+    try:
+        return REGISTRY[key]
+    except KeyError:
+        raise ValueError(f"unknown method {name!r}; choose one of: {', '.join(REGISTRY)}") from None
+
+
+def is_registered(m) -> bool:
+    return REGISTRY.get(m.name) is m
+
+
+def names(where=None) -> list[str]:
+    """Registered names, in registration order; ``where(entry)`` filters."""
+    return [n for n, m in REGISTRY.items() if where is None or where(m)]
+
+
+def describe(m) -> str:
+    """One line: the description and the capabilities (for option docs and ``--help``)."""
+    caps = ["adaptive" if m.adaptive else "fixed step", "+".join(m.backends)]
+    if m.lockstep:
+        caps.append("lock-step")
+    if m.stiffness_stage is not None:
+        caps.append("flags stiff lines")
+    if not m.resamples:
+        caps.append("vertices at its steps")
+    return f"{m.description} ({', '.join(caps)})"
+
+
+def catalogue(indent: str = "") -> str:
+    """Every registered method, one per line: name, description, capabilities."""
+    w = max(len(n) for n in REGISTRY)
+    return "\n".join(f"{indent}{n:<{w}}  {describe(m)}" for n, m in REGISTRY.items())
 
 
 def _extend(c, a, b):
@@ -137,7 +494,7 @@ def _dopri5() -> Method:
     ])
     return Method("dopri5", 5, 4, c, a, b, e, p, n_err=7, fsal_stage=6,
                   description="Dormand–Prince 5(4), FSAL, quartic dense output",
-                  aliases=("rk45", "dp5"))
+                  aliases=("rk45", "dp5"), stiffness_stage=5)
 
 
 def _cashkarp() -> Method:
@@ -151,10 +508,8 @@ def _cashkarp() -> Method:
     b5 = np.array([37 / 378, 0, 250 / 621, 125 / 594, 0, 512 / 1771])
     b4 = np.array([2825 / 27648, 0, 18575 / 48384, 13525 / 55296, 277 / 14336, 1 / 4])
     # VTK's vtkRungeKutta45 propagates the 5th-order solution (local extrapolation): so do we
-    c, a, b, f = _extend(c, a, b5)
-    e = np.append(b5 - b4, 0.0)
-    return Method("cashkarp", 5, 4, c, a, b, e, _hermite(b, f), n_err=6, fsal_stage=f,
-                  description="Cash–Karp 4(5) (VTK's RK45), Hermite dense output", aliases=("ck45",))
+    return Method.from_butcher("cashkarp", c, a, b5, b4, order=5, err_order=4, aliases=("ck45",),
+                               description="Cash–Karp 4(5) (VTK's RK45), Hermite dense output")
 
 
 def _bs23() -> Method:
@@ -176,15 +531,13 @@ def _rk4() -> Method:
     a0[1, 0] = 1 / 2
     a0[2, 1] = 1 / 2
     a0[3, 2] = 1
-    c, a, b, f = _extend(c0, a0, [1 / 6, 1 / 3, 1 / 3, 1 / 6])
-    return Method("rk4", 4, 0, c, a, b, np.zeros(5), _hermite(b, f), n_err=4, fsal_stage=f,
-                  description="classic Runge–Kutta 4, fixed step, Hermite dense output")
+    return Method.from_butcher("rk4", c0, a0, [1 / 6, 1 / 3, 1 / 3, 1 / 6], order=4,
+                               description="classic Runge–Kutta 4, Hermite dense output")
 
 
 def _euler() -> Method:
-    c, a, b, f = _extend([0.0], np.zeros((1, 1)), [1.0])
-    return Method("euler", 1, 0, c, a, b, np.zeros(2), _hermite(b, f), n_err=1, fsal_stage=f,
-                  description="explicit Euler, fixed step, Hermite dense output")
+    return Method.from_butcher("euler", [0.0], np.zeros((1, 1)), [1.0], order=1,
+                               description="explicit Euler, Hermite dense output")
 
 
 def _dop853() -> Method:
@@ -219,20 +572,35 @@ def _dop853() -> Method:
         poly = shifted if i % 2 == 0 else poly - shifted  # times θ or times (1 - θ)
     p = poly[1:].T.copy()
     return Method("dop853", 8, 7, c, a, b, e, p, n_err=fs + 1, fsal_stage=fs, e2=e2,
-                  description="Dormand–Prince 8(5,3), 7th-order dense output (for references)")
+                  description="Dormand–Prince 8(5,3), 7th-order dense output (references)")
 
 
-METHODS: dict[str, Method] = {m.name: m for m in (_dopri5(), _cashkarp(), _bs23(), _rk4(), _euler(), _dop853())}
-_ALIASES = {al: m.name for m in METHODS.values() for al in m.aliases}
+def _ros34pw2() -> RosenbrockMethod:
+    # Rang & Angermann, BIT 45 (2005): L-stable, W-method of order 3, embedded order 2
+    alpha = np.array([
+        [0.0, 0.0, 0.0, 0.0],
+        [8.7173304301691801e-01, 0.0, 0.0, 0.0],
+        [8.4457060015369423e-01, -1.1299064236484185e-01, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 0.0],
+    ])
+    gammas = np.array([  # off-diagonal γ_ij
+        [0.0, 0.0, 0.0, 0.0],
+        [-8.7173304301691801e-01, 0.0, 0.0, 0.0],
+        [-9.0338057013044082e-01, 5.4180672388095326e-02, 0.0, 0.0],
+        [2.4212380706095346e-01, -1.2232505839045147e+00, 5.4526025533510214e-01, 0.0],
+    ])
+    b = np.array([2.4212380706095346e-01, -1.2232505839045147e+00, 1.5452602553351020e+00,
+                  4.3586652150845900e-01])
+    bhat = np.array([3.7810903145819369e-01, -9.6042292212423178e-02, 5.0e-01,
+                     2.1793326075422950e-01])
+    return RosenbrockMethod("ros34pw2", 3, 2, 4.3586652150845900e-01, alpha, gammas, b, bhat,
+                            description="Rosenbrock-W 3(2), L-stable, for stiff fields, exact "
+                                        "cell Jacobian")
 
 
-def get_method(name: str | Method) -> Method:
-    """Method by name (case-insensitive, aliases such as 'rk45' accepted)."""
-    if isinstance(name, Method):
-        return name
-    key = str(name).lower()
-    key = _ALIASES.get(key, key)
-    try:
-        return METHODS[key]
-    except KeyError:
-        raise ValueError(f"unknown method {name!r}; choose one of: {', '.join(METHODS)}") from None
+for _m in (_dopri5(), _cashkarp(), _bs23(), _rk4(), _euler(), _dop853(), _ros34pw2(),
+           StiffSwitch("auto", "dopri5", "ros34pw2",
+                       description="dopri5; the lines it flags stiff are traced again with "
+                                   "ros34pw2")):
+    register_method(_m)
+del _m

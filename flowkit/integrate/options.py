@@ -7,11 +7,9 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from .methods import get_method
+from .methods import METHODS, catalogue, get_method, is_registered, names
 
 DIRECTIONS = ("forward", "backward", "both")
-# methods with their own driver, not a tableau for the explicit kernel (see trace._trace_batch)
-STIFF_METHODS = ("ros34pw2", "auto")
 PARAMETERS = ("time", "arc_length")
 
 
@@ -23,14 +21,15 @@ class OptionsError(ValueError):
 class TraceOptions:
     """Options of :func:`flowkit.trace`.  ``None`` means "derived from the field" (see below).
 
-    method       dopri5 (default), cashkarp, bs23, dop853 (adaptive); rk4, euler (fixed step);
-                 ros34pw2 (L-stable Rosenbrock for stiff fields, numba, vertices at its steps);
-                 auto (dopri5; lines it flags stiff are traced again with ros34pw2)
+    method       a registered method's name (default dopri5) or a method object
+                 (flowkit.integrate.methods: Method, e.g. Method.from_butcher(...),
+                 RosenbrockMethod, StiffSwitch), validated by its check().  Registered:
+{methods}
     rtol, atol   relative/absolute tolerance, a number or one per component (x, y, z); the error
                  of a step is the RMS over components of err_i / (atol_i + rtol_i * |y_i|).
                  atol None: rtol times the largest extent of the grid.
     step         initial step (adaptive; None: Hairer's automatic choice) or the fixed step
-                 (rk4, euler; None: half the smallest cell, in time at the typical speed);
+                 (fixed-step methods; None: half the smallest cell, in time at the typical speed);
                  in units of the parameter (time, or arc length).
     min_step     a step the controller wants below this ends the line (step_underflow);
                  None: 1e-10 of the smallest cell crossing
@@ -76,14 +75,19 @@ class TraceOptions:
     progress: bool | None = None
 
     def __post_init__(self):
-        name = str(self.method).lower()
-        if name in STIFF_METHODS:
-            object.__setattr__(self, "method", name)
-            if self.spacing is not None or self.count is not None:
-                raise OptionsError(f"method {name}: options spacing and count (resampling) are "
-                                   "offered by the explicit methods only; ros34pw2 emits its steps")
+        m = get_method(self.method)
+        if is_registered(m):  # by its name: options read, print and hash as before
+            object.__setattr__(self, "method", m.name)
         else:
-            object.__setattr__(self, "method", get_method(self.method).name)
+            if m.name in names():
+                raise OptionsError(f"option method: the name {m.name!r} is a registered method's; "
+                                   "give your method another name")
+            m.check()
+        if not m.resamples and (self.spacing is not None or self.count is not None):
+            raise OptionsError(f"method {m.name}: options spacing and count (resampling) are "
+                               f"offered by the methods with dense output "
+                               f"({', '.join(names(lambda e: e.resamples))}); {m.name} emits "
+                               "its steps")
         object.__setattr__(self, "rtol", _tol("rtol", self.rtol, positive=True))
         if self.atol is not None:
             object.__setattr__(self, "atol", _tol("atol", self.atol, positive=False))
@@ -132,13 +136,27 @@ class TraceOptions:
         return replace(self, **kw)
 
     @property
-    def method_obj(self):
-        """The explicit method's tableau; ros34pw2 and auto have none (only ``flowkit.trace``
-        and ``trace_to_file`` run them), so a caller that needs one gets a clear error."""
-        if self.method in STIFF_METHODS:
-            raise OptionsError(f"method {self.method} is offered by flowkit.trace/trace_to_file "
-                               "only; choose an explicit method (dopri5, cashkarp, bs23, dop853)")
+    def entry(self):
+        """The method's registry entry (or the unregistered method object given)."""
         return get_method(self.method)
+
+    @property
+    def method_name(self) -> str:
+        return self.entry.name
+
+    @property
+    def method_obj(self):
+        """The explicit method's tableau; methods of another kind have none (only
+        ``flowkit.trace`` and ``trace_to_file`` run them), so a caller that needs one gets a
+        clear error."""
+        m = self.entry
+        if m.kind != "explicit":
+            raise OptionsError(f"method {m.name} is offered by flowkit.trace/trace_to_file only; "
+                               f"choose an explicit method ({', '.join(METHODS)})")
+        return m
+
+
+TraceOptions.__doc__ = TraceOptions.__doc__.replace("{methods}", catalogue(" " * 17))
 
 
 def _num(v) -> bool:

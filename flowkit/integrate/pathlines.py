@@ -434,7 +434,7 @@ def _check_options(opts: TraceOptions, kw) -> TraceOptions:
     if opts.parameter != "time":
         raise OptionsError(f"pathlines: option parameter must be time, got {opts.parameter!r}")
     if not opts.method_obj.adaptive:
-        raise OptionsError(f"pathlines: option method must be adaptive, got {opts.method!r}")
+        raise OptionsError(f"pathlines: option method must be adaptive, got {opts.method_name!r}")
     if opts.spacing is not None or opts.count is not None:
         raise OptionsError("pathlines: options spacing and count are not supported "
                            "(vertices are the accepted steps)")
@@ -550,7 +550,7 @@ def _assemble(chunks, n, seeds, release, si, opts, times, sources, field=None) -
     ld = {"seed_id": np.arange(n, dtype=np.int64), "reason": si[:, I_REASON].astype(np.int8),
           "n_accepted": si[:, I_NACC].astype(np.int32), "n_rejected": si[:, I_NREJ].astype(np.int32),
           "release_time": release.copy()}
-    attrs = {"kind": "pathlines", "method": opts.method, "rtol": str(opts.rtol),
+    attrs = {"kind": "pathlines", "method": opts.method_name, "rtol": str(opts.rtol),
              "atol": str(opts.atol), "parameter": "time", "direction": opts.direction,
              "max_length": opts.max_length, "max_time": opts.max_time, "max_steps": opts.max_steps,
              "snapshot_times": np.asarray(times, np.float64),

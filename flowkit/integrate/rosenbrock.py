@@ -17,9 +17,10 @@ The driver reuses the numba kernel's pieces (cell location ``_relocate``, the mo
 cell ``_onto_next_cell``/``_through_face``, the cell's exit ``_exit_time``, right-hand side
 ``_fc``, dense evaluation and event roots ``_dense``/``_root``, the reject rule ``_retry``, vertex
 output ``_put``) and its option arrays (``trace._Setup``); it is always cell-aware, and its
-termination follows the kernel's rules and reason codes.  Its step loop mirrors the kernel's,
-because the kernel's loop has no hook for another step formula (docs/precision.md, "What the
-two loops share").
+termination follows the kernel's rules and reason codes.  The coefficients are the registry
+entry's (``methods.RosenbrockMethod``): any number of stages, the error exponent from its
+orders.  Its step loop mirrors the kernel's, because the kernel's loop has no hook for
+another step formula (docs/precision.md, "What the two loops share").
 
 Per line it also records the stiffness it met: ``stiff_steps`` (accepted steps with
 h ρ(J) > 3.25, steps an explicit DP5 step of that size would be unstable for; ρ bounded by the
@@ -38,30 +39,17 @@ from ..jit import inline
 from ..lines import Lines
 from . import kernel as K
 from .kernel import _dense, _fc, _norm3, _put, _relocate, _root
+from .methods import get_method
 from .options import TraceOptions
 from .schema import I_NACC, I_NREJ, I_REASON, I_STATUS, ROS_INT_STATE
 from .stiffness import HLAMBDA_STIFF, cell_jacobian, spectral_radius_bound, stiff_update
 from .threads import run_ranges
+from .trace import trace
 
 NAME = "ros34pw2"
-GAMMA = 4.3586652150845900e-01
-ALPHA = np.array([
-    [0.0, 0.0, 0.0, 0.0],
-    [8.7173304301691801e-01, 0.0, 0.0, 0.0],
-    [8.4457060015369423e-01, -1.1299064236484185e-01, 0.0, 0.0],
-    [0.0, 0.0, 1.0, 0.0],
-])
-GAMMAS = np.array([  # off-diagonal γ_ij (the diagonal is GAMMA)
-    [0.0, 0.0, 0.0, 0.0],
-    [-8.7173304301691801e-01, 0.0, 0.0, 0.0],
-    [-9.0338057013044082e-01, 5.4180672388095326e-02, 0.0, 0.0],
-    [2.4212380706095346e-01, -1.2232505839045147e+00, 5.4526025533510214e-01, 0.0],
-])
-B = np.array([2.4212380706095346e-01, -1.2232505839045147e+00, 1.5452602553351020e+00,
-              4.3586652150845900e-01])
-BHAT = np.array([3.7810903145819369e-01, -9.6042292212423178e-02, 5.0e-01,
-                 2.1793326075422950e-01])
-ORDER, ERR_ORDER = 3, 2
+_M = get_method(NAME)
+GAMMA, ALPHA, GAMMAS, B, BHAT = _M.gamma, _M.alpha, _M.gammas, _M.b, _M.bhat
+ORDER, ERR_ORDER = _M.order, _M.err_order
 _Q = 3  # Hermite dense output degree
 _OVERFLOW = 3  # line status: its output buffer filled; rerun with a larger one
 # a line's int row (schema.py): the kernel's leading columns, then its stiffness
@@ -115,9 +103,10 @@ def _inv3(M, Mi):
 
 
 @njit(cache=True)
-def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
+def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kexp, fo, io,
           si, out_p, out_par, out_n):
-    """Trace line l into out_*[l]; its counts and stiffness into si[l] (``ROS_INT_STATE``)."""
+    """Trace line l into out_*[l]; its counts and stiffness into si[l] (``ROS_INT_STATE``).
+    ``gam`` is Γ with its diagonal γ; ``kexp`` the controller's q + 1."""
     Bcap = out_p.shape[1]
     param = io[K.P_PARAM]
     max_steps = io[K.P_MAXSTEPS]
@@ -129,8 +118,10 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
     r_dep = K.R_MAXLEN if param == 0 else K.R_MAXTIME
     d = dirs[l]
     out_n[l] = 0
-    k = np.empty((5, 4))  # rows 0-3: f at the stages (row 0: f(y0)); row 4: f(y1)
-    kk = np.zeros((4, 4))  # the stage increments k_i of the method
+    ns = b.size
+    gamma = gam[0, 0]
+    k = np.empty((ns + 1, 4))  # rows 0..ns-1: f at the stages (row 0: f(y0)); row ns: f(y1)
+    kk = np.zeros((ns, 4))  # the stage increments k_i of the method
     coef = np.empty((8, 3))
     cf = np.empty(9)
     ci = np.full(3, -1, np.int64)
@@ -204,9 +195,9 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
         _rhs_jac(y[0], y[1], y[2], param, coef, cf, J, g, u)
         for i in range(3):
             for j in range(3):
-                W[i, j] = (1.0 if i == j else 0.0) - hs * GAMMA * J[i, j]
+                W[i, j] = (1.0 if i == j else 0.0) - hs * gamma * J[i, j]
         finite = _inv3(W, Wi)
-        for st in range(4):
+        for st in range(ns):
             if not finite:
                 break
             if st > 0:
@@ -226,7 +217,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
                 rhs[a] = hs * (k[st, a] + acc)
             for a in range(3):
                 kk[st, a] = Wi[a, 0] * rhs[0] + Wi[a, 1] * rhs[1] + Wi[a, 2] * rhs[2]
-            kk[st, 3] = rhs[3] + hs * GAMMA * (g[0] * kk[st, 0] + g[1] * kk[st, 1] + g[2] * kk[st, 2])
+            kk[st, 3] = rhs[3] + hs * gamma * (g[0] * kk[st, 0] + g[1] * kk[st, 1] + g[2] * kk[st, 2])
             for a in range(4):
                 if not math.isfinite(kk[st, a]):
                     finite = False
@@ -235,7 +226,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
             for a in range(4):
                 acc = 0.0
                 ea = 0.0
-                for m in range(4):
+                for m in range(ns):
                     acc += b[m] * kk[m, a]
                     ea += (b[m] - bhat[m]) * kk[m, a]
                 y1[a] = y[a] + acc
@@ -245,16 +236,16 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
             err = math.sqrt(err / 3.0)
             finite = math.isfinite(err)
         if finite:  # f(y1): the next step's f0 and the Hermite end slope
-            _fc(y1[0], y1[1], y1[2], param, cf, coef, k, np.int64(4))
-            finite = math.isfinite(k[4, 0] + k[4, 1] + k[4, 2] + k[4, 3])
+            _fc(y1[0], y1[1], y1[2], param, cf, coef, k, np.int64(ns))
+            finite = math.isfinite(k[ns, 0] + k[ns, 1] + k[ns, 2] + k[ns, 3])
         if not finite or err > 1.0:  # NaN data met (a stage, or f(y1)), or an error too large
             n_rej += 1
             last_rej = True
-            h, reason = K._retry(hs, err, not finite, hmin, safety, facmin, 1.0 / (ERR_ORDER + 1))
+            h, reason = K._retry(hs, err, not finite, hmin, safety, facmin, 1.0 / kexp)
             if reason >= 0:
                 break
             continue
-        fac = facmax if err == 0.0 else min(facmax, max(facmin, safety * err ** (-1.0 / (ERR_ORDER + 1))))
+        fac = facmax if err == 0.0 else min(facmax, max(facmin, safety * err ** (-1.0 / kexp)))
         if last_rej:
             fac = min(fac, 1.0)
         hnext = hs * fac
@@ -280,8 +271,8 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
             for a in range(4):
                 dl = (y1[a] - y[a]) / hs
                 qd[a, 0] = k[0, a]
-                qd[a, 1] = 3.0 * dl - 2.0 * k[0, a] - k[4, a]
-                qd[a, 2] = -2.0 * dl + k[0, a] + k[4, a]
+                qd[a, 1] = 3.0 * dl - 2.0 * k[0, a] - k[ns, a]
+                qd[a, 2] = -2.0 * dl + k[0, a] + k[ns, a]
         if need_face:
             for a in range(3):
                 if y1[a] < cf[a]:
@@ -306,7 +297,7 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
         if ev == K.EV_NONE:
             for a in range(4):
                 y[a] = y1[a]
-                k[0, a] = k[4, a]
+                k[0, a] = k[ns, a]
             tau = d * lim_ind if hit_lim else tau + hs
         else:
             y0x, y0y, y0z, y0d = y[0], y[1], y[2], y[3]
@@ -348,28 +339,32 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo,
 
 @njit(cache=True, nogil=True)
 def _advance_range(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat,
-                   fo, io, si, out_p, out_par, out_n):
+                   kexp, fo, io, si, out_p, out_par, out_n):
     """Lines start..stop-1, one after the other; without the GIL, so that threads run ranges
     side by side (``threads.run_ranges``)."""
     for l in range(start, stop):
-        _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
+        _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kexp, fo, io,
               si, out_p, out_par, out_n)
 
 
-def _advance(seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, fo, io,
+def _advance(seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kexp, fo, io,
              si, out_p, out_par, out_n):
     """Every line, on numba's thread count of Python threads: a prange loop around ``_line``
     compiled it twice (its index is int64 where numba types the loop, uint64 where it lowers
     it) and built a parallel gufunc, seconds of compilation on every fresh machine."""
     run_ranges(_advance_range, seeds.shape[0], seeds, dirs, gx, gy, gz, period, inv, vec, alpha,
-               gam, b, bhat, fo, io, si, out_p, out_par, out_n)
+               gam, b, bhat, kexp, fo, io, si, out_p, out_par, out_n)
 
 
-def run_tasks(setup, seeds, dirs, max_steps):
-    """Trace the half-lines (``seeds`` (n, 3), ``dirs`` ±1) with the options of ``setup``
-    (``trace._Setup``); returns (points, t, s, owner, columns) with vertices grouped by task in
+def run_tasks(method, setup, seeds, dirs, max_steps):
+    """Trace the half-lines (``seeds`` (n, 3), ``dirs`` ±1) by the RosenbrockMethod ``method``
+    with the options of ``setup`` (``trace._Setup``); returns (points, t, s, owner, columns) with vertices grouped by task in
     order, as the explicit kernel's passes do, and per-task line_data columns."""
     n = seeds.shape[0]
+    arrays = [np.ascontiguousarray(x, np.float64) for x in
+              (method.alpha, method.gammas + method.gamma * np.eye(method.b.size), method.b,
+               method.bhat)]
+    kexp = np.int64(min(method.order, method.err_order) + 1)
     si = np.zeros((n, NI), np.int64)
     cap = int(min(max_steps + 2, 1024))
     todo = np.arange(n)
@@ -380,7 +375,7 @@ def run_tasks(setup, seeds, dirs, max_steps):
         out_par = np.empty((todo.size, cap, 2))
         out_n = np.zeros(todo.size, np.int64)
         ssi = np.zeros((todo.size, NI), np.int64)
-        _advance(seeds[todo], dirs[todo], *setup.grid, setup.vec, ALPHA, GAMMAS, B, BHAT,
+        _advance(seeds[todo], dirs[todo], *setup.grid, setup.vec, *arrays, kexp,
                  setup.fo, setup.io, ssi, out_p, out_par, out_n)
         done = ssi[:, I_STATUS] != _OVERFLOW
         for j in np.flatnonzero(done):
@@ -406,7 +401,5 @@ def trace_rosenbrock(field: Field, seeds, options: TraceOptions | None = None, *
     """``flowkit.trace(..., method="ros34pw2")``: streamlines by ROS34PW2 (cell-aware, exact
     cell Jacobian), vertices at the accepted steps.  line_data adds ``stiff`` (int8,
     Hairer–Wanner flag) and ``stiff_steps`` (int32)."""
-    from .trace import trace
-
     kw["method"] = NAME
     return trace(field, seeds, options, **kw)

@@ -21,8 +21,8 @@ from . import attributes as _attributes
 from . import kernel as K
 from . import lanes
 from .launch import FieldArrays, Launch, MethodArrays
-from .methods import get_method
-from .options import STIFF_METHODS, OptionsError, TraceOptions
+from .methods import names
+from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES
 
 BUFFER_BYTES = 32 << 20  # output buffer of one pass: (tasks, budget) vertices of 40 bytes
@@ -101,7 +101,7 @@ def _seeds(seeds) -> np.ndarray:
 
 def _attrs(field: Field, opts: TraceOptions) -> dict:
     return {**_attributes.metadata(field, opts.attributes),
-        "method": opts.method, "rtol": str(opts.rtol), "atol": str(opts.atol),
+        "method": opts.method_name, "rtol": str(opts.rtol), "atol": str(opts.atol),
         "parameter": opts.parameter, "direction": opts.direction,
         "cell_aware": int(opts.cell_aware),
         "cross_faces": int(opts.cross_faces), "max_length": opts.max_length, "max_time": opts.max_time,
@@ -160,17 +160,15 @@ class _Setup:
             self.advance = bind(field, opts.attributes)
         self.n_columns = getattr(self.advance, "n_columns", 0)
         self.point_data = None  # the last run's backend attributes, in its vertex order
-        if opts.method == "ros34pw2" and backend != "numba":
-            raise OptionsError(f"method ros34pw2 runs on the numba backend only, got backend "
-                               f"{backend!r} (method auto re-traces its stiff lines on numba)")
+        entry = opts.entry
+        _check_backend(entry, backend)
         g = field.grid
-        m = get_method("dopri5") if opts.method in STIFF_METHODS else opts.method_obj
-        if m.p.shape[1] > K.QMAX:
-            raise ValueError(f"method {m.name}: dense output degree {m.p.shape[1]} > {K.QMAX}")
+        m = entry.explicit  # the tableau the kernel runs first; None: the entry's own driver
         self.method = m
         self.grid = g.kernel_args()
         self.vec = field.vector
-        self.arrays = FieldArrays.of(field), MethodArrays.of(m)
+        # (no tableau: the entry's own driver takes the field and options from here)
+        self.arrays = FieldArrays.of(field), None if m is None else MethodArrays.of(m)
         ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
         cell = g.min_cell_size
         vtyp = _typical_speed(field)
@@ -183,7 +181,7 @@ class _Setup:
             fo[K.O_ATOL:K.O_ATOL + 3] *= ext
         fo[K.O_SAFETY], fo[K.O_FACMIN], fo[K.O_FACMAX] = opts.safety, opts.min_factor, opts.max_factor
         fo[K.O_BETA] = opts.beta
-        if m.adaptive:
+        if entry.adaptive:
             fo[K.O_H0] = opts.step or 0.0
         else:
             fo[K.O_H0] = opts.step if opts.step is not None else 0.5 * cross
@@ -198,8 +196,9 @@ class _Setup:
         io[K.P_PARAM] = 1 if opts.parameter == "arc_length" else 0
         io[K.P_AWARE] = int(opts.cell_aware)
         io[K.P_CROSS] = int(opts.cross_faces)
-        # Hairer & Wanner's stiffness test needs DP5's stage pair at c = 1 (stages 5 and 6)
-        io[K.P_STIFF] = 5 if m.name == "dopri5" else -1
+        # Hairer & Wanner's stiffness test on the method's stage pair at c = 1, where it has one
+        stiff = None if m is None else m.stiffness_stage
+        io[K.P_STIFF] = -1 if stiff is None else stiff
         self.io = io
 
     def run(self, seeds, dirs, emit, spacing, phase, budget, on_pass=None):
@@ -251,6 +250,22 @@ class _Setup:
             self.point_data = self.advance.point_data(t, s, cols if order is None else cols[order])
 
 
+def _check_backend(entry, backend) -> None:
+    """The method runs on the backend: a callable stands in for the explicit kernel."""
+    if callable(backend):
+        ok, kind = entry.explicit is not None, "callable"
+    else:
+        kind = str(backend).split(":")[0]
+        ok = kind in entry.backends
+    if not ok:
+        also = names(lambda e: e.retrace is entry)
+        hint = (f" (method {', '.join(also)} re-traces its stiff lines with {entry.name} on "
+                f"{entry.backends[0]})") if also else ""
+        raise OptionsError(f"method {entry.name} runs on the {' and '.join(entry.backends)} "
+                           f"backend{'s' if len(entry.backends) > 1 else ''} only, got backend "
+                           f"{backend if kind == 'callable' else repr(backend)}{hint}")
+
+
 def _backend(backend):
     if callable(backend):
         return backend
@@ -285,13 +300,12 @@ def _batches(field, seeds, opts, batch_seeds=BATCH_SEEDS, backend="numba"):
 def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> Lines:
     n = seeds.shape[0]
     both = opts.direction == "both"
-    if opts.method == "ros34pw2":
-        from .rosenbrock import run_tasks
-
+    entry = opts.entry
+    if entry.driver is not None:  # a method with its own step loop (Rosenbrock)
         tseeds = np.repeat(seeds, 2, axis=0) if both else seeds
         dirs = (np.tile(np.array([-1.0, 1.0]), n) if both
                 else np.full(n, -1.0 if opts.direction == "backward" else 1.0))
-        pts, t, s, owner, cols = run_tasks(setup, tseeds, dirs, opts.max_steps)
+        pts, t, s, owner, cols = entry.load_driver()(entry, setup, tseeds, dirs, opts.max_steps)
         return _assemble(field, opts, seeds, id0, pts, t, s, owner, cols)
     if both:  # task 2i: backward half, 2i + 1: forward half
         tseeds = np.repeat(seeds, 2, axis=0)
@@ -332,23 +346,26 @@ def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> L
             "n_crossing": si[:, K.I_NCROSS].astype(np.int32),
             "stiff": ((si[:, K.I_STIFF] >> 16) & 1).astype(np.int8)}  # stiffness.is_stiff's bit
     lines = _assemble(field, opts, seeds, id0, pts, t, s, owner, cols, setup.point_data)
-    if opts.method == "auto":
+    if entry.retrace is not None:
         lines = _retrace_stiff(field, setup, seeds, opts, lines)
     return lines
 
 
 def _retrace_stiff(field, setup, seeds, opts, lines: Lines) -> Lines:
-    """method auto: the lines dopri5 flagged stiff, traced again from their seeds by ros34pw2
-    (n_accepted/n_rejected then count ros34pw2's steps); line_data ``ros34pw2`` marks them."""
+    """A StiffSwitch (auto): the lines its explicit method flagged stiff, traced again from their
+    seeds by its stiff method (n_accepted/n_rejected then count that method's steps); the
+    line_data column named after the stiff method (``ros34pw2``) marks them."""
+    other = opts.entry.retrace
     stiff = lines.line_data["stiff"] != 0
-    lines.line_data["ros34pw2"] = np.zeros(len(lines), np.int8)
+    lines.line_data[other.name] = np.zeros(len(lines), np.int8)
     if not stiff.any():
         return lines
-    ros = _trace_batch(field, setup, seeds[stiff], opts.replace(method="ros34pw2"), 0)
+    ros = _trace_batch(field, setup, seeds[stiff], opts.replace(method=other), 0)
     ros.line_data["seed_id"] = lines.line_data["seed_id"][stiff]
-    ros.line_data["stiff"] = np.ones(len(ros), np.int8)  # as dopri5 found it
-    ros.line_data["ros34pw2"] = np.ones(len(ros), np.int8)
-    del ros.line_data["stiff_steps"]
+    ros.line_data["stiff"] = np.ones(len(ros), np.int8)  # as the explicit method found it
+    ros.line_data[other.name] = np.ones(len(ros), np.int8)
+    for extra in set(ros.line_data) - set(lines.line_data):  # the driver's own (stiff_steps)
+        del ros.line_data[extra]
     both = Lines.concatenate([lines[~stiff], ros])
     return both[np.argsort(both.line_data["seed_id"], kind="stable")]
 

@@ -16,16 +16,7 @@ import jinja2
 import moderngl
 
 from .colormaps import TEXELS, _ctx_store, colormap_texture
-from .shapes import (
-    ARROW_HEAD,
-    ARROW_SHAFT,
-    CURVE_SIZE,
-    DASH_ON,
-    PEAKS,
-    SHAPE_NAMES,
-    ShapeCurve,
-    curve_texture,
-)
+from .shapes import CURVE_SIZE, PEAKS, SHAPE_NAMES, SHAPES, ShapeCurve, curve_texture
 from .style import ColorMap, Style, WidthMap
 
 BIG = 3.0e38  # an infinite transfer bound as a float32 uniform
@@ -294,7 +285,7 @@ def build_sources(flags: ShaderFlags) -> dict[str, str]:
                curve_size=CURVE_SIZE, uses_colormap=flags.uses_colormap,
                uses_width_map=flags.uses_width_map, shapes=_checked(flags.shapes, "shapes"),
                uses_phase=flags.uses_phase, pattern_slots=flags.pattern_slots,
-               arrow_shaft=ARROW_SHAFT, arrow_head=ARROW_HEAD, dash_on=DASH_ON,
+               shape_sources={n: SHAPES[n].glsl() for n in flags.shapes},
                narrow_bands=_checked([asdict(b) for b in flags.narrow_bands], "narrow_bands"),
                narrow_slots=sorted({b.shape_attr for b in flags.narrow_bands
                                     if b.shape not in ("none", "custom")}),

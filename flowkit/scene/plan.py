@@ -159,7 +159,7 @@ def explain(plan: Plan, cache=None) -> str:
              f"seeds: {sc.seeds}" + (f", pruned at distance {sc.prune[0]:g} over "
                                       f"{sc.prune[1]:.0%} of a line" if sc.prune else "")]
     o = plan.options
-    lines.append(f"trace: {o.method}, rtol {o.rtol}, direction {o.direction}, parameter "
+    lines.append(f"trace: {o.method_name}, rtol {o.rtol}, direction {o.direction}, parameter "
                  f"{o.parameter}, max_length {o.max_length:g}, max_time {o.max_time:g}"
                  + (f", spacing {o.spacing:g}" if o.spacing else "")
                  + (f", count {o.count}" if o.count else ""))

@@ -34,7 +34,7 @@ from ..fields import Field
 from ..fields.interp import locate, trilinear_vector
 from ..integrate import attributes as _attributes
 from ..integrate import trace as _trace
-from ..integrate.options import STIFF_METHODS, OptionsError, TraceOptions
+from ..integrate.options import OptionsError, TraceOptions
 from ..integrate.reasons import Reason
 from ..lines import Lines
 
@@ -380,9 +380,12 @@ class EvenSeeder:
         if opts.count is not None:
             raise OptionsError("evenly spaced seeding: option count (resample every line to n "
                                "vertices) cannot apply to lines that are cut; use spacing")
-        if opts.spacing is None and opts.method not in STIFF_METHODS:
+        if opts.spacing is None and opts.entry.resamples:
             opts = opts.replace(spacing=0.5 * dtest)  # vertices dense enough for the dtest bound
         self.field, self.dsep, self.dtest, self.opts = field, float(dsep), float(dtest), opts
+        # line_data column of the lines a StiffSwitch traced again (ros34pw2), if any
+        retrace = opts.entry.retrace
+        self.retraced = None if retrace is None else retrace.name
         self.seed, self.backend, self.max_lines = int(seed), backend, max_lines
         g = field.grid
         self.bounds, self.period = g.bounds, np.array(g.period, np.float64)
@@ -484,7 +487,7 @@ class EvenSeeder:
                 if j == len(halves) - 1:  # step counts of the call go to the last half
                     h.nacc += ld["n_accepted"]
                     h.nrej += ld["n_rejected"]
-                for key in ("stiff", "ros34pw2"):
+                for key in ("stiff", self.retraced):
                     if key in ld:
                         h.flags[key] = max(h.flags.get(key, 0), ld[key])
                 self.own.reserve(len(h.pts))
@@ -550,8 +553,8 @@ class EvenSeeder:
         ld = {"reason": [], "n_accepted": [], "n_rejected": [], "stiff": []}
         if both:
             ld["reason_backward"] = []
-        if opts.method == "auto":
-            ld["ros34pw2"] = []
+        if self.retraced is not None:
+            ld[self.retraced] = []
         for halves in self.lines:
             if both:
                 b, f = halves
@@ -571,8 +574,8 @@ class EvenSeeder:
             ld["n_accepted"].append(sum(h.nacc for h in halves))
             ld["n_rejected"].append(sum(h.nrej for h in halves))
             ld["stiff"].append(max(h.flags.get("stiff", 0) for h in halves))
-            if "ros34pw2" in ld:
-                ld["ros34pw2"].append(max(h.flags.get("ros34pw2", 0) for h in halves))
+            if self.retraced is not None:
+                ld[self.retraced].append(max(h.flags.get(self.retraced, 0) for h in halves))
         n = len(self.lines)
         pts = np.concatenate(pts) if pts else np.zeros((0, 3))
         t = np.concatenate(t) if t else np.zeros(0)
@@ -580,7 +583,7 @@ class EvenSeeder:
         offsets = np.zeros(n + 1, np.int64)
         np.cumsum(counts, out=offsets[1:])
         dtypes = {"reason": np.int8, "reason_backward": np.int8, "stiff": np.int8,
-                  "ros34pw2": np.int8, "n_accepted": np.int32, "n_rejected": np.int32}
+                  self.retraced: np.int8, "n_accepted": np.int32, "n_rejected": np.int32}
         line_data = {"seed_id": np.arange(n, dtype=np.int64)}
         line_data.update({k: np.array(v, dtypes[k]) for k, v in ld.items()})
         seeds = np.array(seeds).reshape(-1, 3)

@@ -3,7 +3,6 @@
 // under the fragment from its lateral position and the bands' (shaped) widths, take the band's
 // colour (or colour pattern), push its depth back by the band's depth offset.
 {% import "bands.glsl" as bands with context %}
-{% import "shapes.glsl" as shapes_lib with context %}
 uniform float u_scale;      // global width scale
 {% if depth_offset %}
 uniform mat4 u_proj;
@@ -50,7 +49,7 @@ float pattern_coverage(float u, float fu, float w) {
 }
 {% endif %}
 {% for name in shapes %}
-{{ shapes_lib.define(name) }}
+{{ shape_sources[name] }}
 {%- endfor %}
 {% for style in styles %}
 {% for b in style %}

@@ -2,7 +2,6 @@
    lines.geom with "geometry"): uniforms, the mitred side offset at a point from its drawn
    neighbours, and the placement of one strip vertex.  Whichever stage builds the strip
    includes this once; the other stage holds none of it. #}
-{% import "shapes.glsl" as shapes_lib with context %}
 {% macro code() %}
 uniform mat4 u_proj;
 uniform float u_half;       // strip half-width, style units (scale x widest style's total width)
@@ -55,7 +54,7 @@ uniform float u_shapel{{ b.index }};
 {% endif %}
 {% endfor %}
 {% for name in shapes %}
-{{ shapes_lib.define(name) }}
+{{ shape_sources[name] }}
 // largest shape_{{ name }}(s) for s = x / l + phase, x between the values in r (the point's and
 // its neighbours': its two segments), widened by 1/1000 period against rounding
 float shape_max_{{ name }}(vec3 r, float inv_l) {

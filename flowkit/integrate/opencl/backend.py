@@ -178,7 +178,7 @@ class OpenCLAdvance:
             cross=bool(io[schema.P_AWARE] and io[schema.P_CROSS] and mi[schema.M_ADAPTIVE]
                        and not self.image),
             uniform=bool(np.all(np.asarray(inv) > 0)), image=self.image,
-            attrs=plan.attrs, scalars=len(plan.scalars))
+            attrs=plan.attrs, scalars=len(plan.scalars), stiff_stage=int(io[schema.P_STIFF]))
         knl = codegen.kernel(self.ctx, self.device, flags, arrays)
         fbufs = self._field_buffers(gx, gy, gz, period, vec)
         extra = [] if bound is None else self._attribute_args(bound.field, plan, flags, arrays,

@@ -44,6 +44,7 @@ class Flags:
     # number of scalar fields sampled; time and arc length need no code (the kernel's t and s)
     attrs: tuple = ()
     scalars: int = 0
+    stiff_stage: int = -1  # the stage the stiffness test pairs with f(y1) (kernel.P_STIFF)
 
     def describe(self) -> str:
         d = asdict(self)
@@ -80,6 +81,8 @@ def render(flags: Flags, arrays) -> str:
     S, n_err, fs = int(ints[schema.M_STAGES]), int(ints[schema.M_NERR]), int(ints[schema.M_FSAL])
     adaptive, has_e2 = bool(ints[schema.M_ADAPTIVE]), bool(ints[schema.M_HASE2])
     kexp = int(ints[schema.M_KEXP])
+    # the test reads the point of a stage computed before the error test
+    stiff_stage = flags.stiff_stage if 1 <= flags.stiff_stage < n_err else -1
     q = p.shape[1]
     if q > schema.QMAX:
         raise ValueError(f"method {flags.method}: dense output degree {q} > {schema.QMAX}")
@@ -103,6 +106,7 @@ def render(flags: Flags, arrays) -> str:
     return _env().get_template("advance.cl.j2").render(
         method=flags.method, real=real, aware=flags.aware, cross=flags.cross, periodic=flags.periodic,
         uniform=flags.uniform, image=flags.image, attrs=flags.attrs, n_scalars=flags.scalars,
+        stiff_stage=stiff_stage,
         S=S, q=q, schema=SCHEMA_DEFINES,
         c=consts, kexp=kexp, adaptive=adaptive, has_e2=has_e2, fs=fs,
         pre_stages=range(1, n_err), post_stages=range(n_err, fs + 1), dense_stages=range(fs + 1, S),
