@@ -3,7 +3,10 @@
 Each scenario runs in a fresh subprocess whose NUMBA_CACHE_DIR (and PoCL kernel cache) is a new
 empty folder: that is what a fresh machine, CI job, container or Dask worker pays.  Then the
 same scenario again in another fresh process on the now filled cache (warm start: imports,
-loading the compiled code, the work itself).  Prints a Markdown table: cold s, warm s, cold/warm.
+loading the compiled code, the work itself).  Then, in a third fresh process on a cache that
+holds only what the default trace compiled, the scenario again: what adding its options costs
+the first time after a default trace ("after default", process start included).  Prints a
+Markdown table: cold s, warm s, cold/warm, after default s.
 
     .venv/bin/python benchmarks/bench_cold_start.py                 # every scenario
     .venv/bin/python benchmarks/bench_cold_start.py default attributes
@@ -70,12 +73,16 @@ def main(argv=None) -> int:
     bad = [n for n in args.scenarios if n not in SCENARIOS]
     if bad:
         ap.error(f"unknown scenario {bad[0]!r}; choose from {', '.join(SCENARIOS)}")
-    print("| scenario | cold s | warm s | cold/warm |\n|---|---|---|---|")
+    print("| scenario | cold s | warm s | cold/warm | after default s |\n|---|---|---|---|---|")
     for name in args.scenarios or SCENARIOS:
         with tempfile.TemporaryDirectory(prefix="flowkit-cold-") as tmp:
             cold = run(name, Path(tmp))
             warm = run(name, Path(tmp))
-        print(f"| {name} | {cold:.1f} | {warm:.1f} | {cold / warm:.0f}x |", flush=True)
+        with tempfile.TemporaryDirectory(prefix="flowkit-cold-") as tmp:
+            run("default", Path(tmp))
+            after = run(name, Path(tmp))
+        print(f"| {name} | {cold:.1f} | {warm:.1f} | {cold / warm:.0f}x | {after:.1f} |",
+              flush=True)
     return 0
 
 
