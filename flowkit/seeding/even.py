@@ -42,10 +42,11 @@ from ..lines import Lines
 
 DIRECTIONS = 6  # candidate seeds around the tangent of a line
 MAX_BATCH = 1024
-MIN_BATCH = 64
+MIN_BATCH = 256
 SELF_GAP = 2.0  # own vertices nearer than this many dsep of arc length never cut a line
 LATTICE = 0.5  # lattice candidates every LATTICE * dsep
-CHUNK = 4.0  # a round grows each live half-line by about this many dsep
+CHUNK = 4.0  # the first round grows each half-line by about this many dsep ...
+GROWTH = 2.0  # ... each later round by this factor more (few calls for the long ones)
 TOO_CLOSE = int(Reason.TOO_CLOSE)
 MAX_LENGTH = int(Reason.MAX_LENGTH)
 
@@ -305,16 +306,14 @@ class EvenSeeder:
                       "trace_seconds": 0.0}
 
     def _chunk(self, chunk):
-        """The arc length of a round: a whole number of vertex spacings (regular vertices across
-        rounds), and equal rounds that add up to max_length exactly; one round with max_time
-        (time and length rounds cannot both add up)."""
+        """The arc length of the first round: a whole number of vertex spacings (so vertices
+        stay regular across rounds, which double it); one round with max_time (time and length
+        rounds cannot both add up)."""
         opts = self.opts
         if math.isfinite(opts.max_time):
             return math.inf
         if opts.spacing is not None:
             chunk = max(1, round(chunk / opts.spacing)) * opts.spacing
-        if math.isfinite(opts.max_length):
-            chunk = opts.max_length / max(1, math.ceil(opts.max_length / chunk - 1e-9))
         return chunk
 
     # -- candidates -----------------------------------------------------------------------------
@@ -397,14 +396,15 @@ class EvenSeeder:
         steps = np.zeros(nh, np.int64)
         ld = {k: np.zeros(nl, np.int64) for k in ("n_accepted", "n_rejected", "n_crossing")}
         flags = {"stiff": np.zeros(nl, np.int8), "ros34pw2": np.zeros(nl, np.int8)}
-        n0, grown, first = st.n, 0.0, True
+        n0, grown, first, chunk = st.n, 0.0, True, self.chunk
         gap = SELF_GAP * self.dsep
         total = opts.max_length
         while True:
             todo = np.flatnonzero(alive & (dead[line - l0] == 0))
             if not len(todo):
                 break
-            length = min(self.chunk, total - grown)
+            length = min(chunk, total - grown)
+            chunk *= GROWTH
             grown += length
             more = math.isinf(total) or total - grown > 1e-12 * total
             calls = ([(opts.direction, todo, seeds)] if first else
