@@ -158,17 +158,19 @@ def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
 
 
 @njit(cache=True)
-def _pick(geo, head, nxt, pts, owner, sarr, cand, at, limit, r, picked, phead, pnxt, pzero):
+def _pick(geo, head, nxt, pts, owner, sarr, cand, at, limit, r, picked, phead, pnxt, pown,
+          ps):
     """From ``cand[at:]``, in order, the candidates at least ``r`` from every hashed vertex and
     from each other, into ``picked`` until ``limit``; returns (how many, the next ``at``).
-    ``phead`` (all -1, left so) and ``pnxt`` hash the picks, ``pzero`` is zeros."""
+    ``phead`` (all -1, left so) and ``pnxt`` hash the picks, ``pown`` and ``ps`` are
+    zeros (the types of ``owner`` and ``sarr``: one compiled ``_scan``)."""
     n = 0
     while at < cand.shape[0] and n < limit:
         p = cand[at]
         at += 1
         if _scan(geo, head, nxt, pts, owner, sarr, p, p, r, -1, 0.0, 0.0, False) > 0.0:
             continue
-        if _scan(geo, phead, pnxt, picked, pzero, pzero, p, p, r, -1, 0.0, 0.0, False) > 0.0:
+        if _scan(geo, phead, pnxt, picked, pown, ps, p, p, r, -1, 0.0, 0.0, False) > 0.0:
             continue
         picked[n] = p
         c = _cell(p, geo)
@@ -367,7 +369,7 @@ class EvenSeeder:
         st = self.store
         picked = np.empty((limit, 3))
         n, at = _pick(*st.hashed, cand, at, limit, self.dsep, picked, self._phead,
-                      np.empty(limit, np.int64), np.zeros(limit, np.int64))
+                      np.empty(limit, np.int64), np.zeros(limit, np.int64), np.zeros(limit))
         return picked[:n], at
 
     # -- growing --------------------------------------------------------------------------------
