@@ -271,6 +271,25 @@ class _Store:
 
 
 # -- the seeder ---------------------------------------------------------------------------------
+def _tasks(tr: Lines, lines, shift, first, both):
+    """The ``_walk`` tasks of a trace call's lines (vertex indices from ``shift``) and their
+    reasons, in half order: a first round's lines start at their seeds (direction both: the
+    backward half walks from the seed down to the first vertex, the forward one on from the
+    seed); a continuation starts after its first vertex, the half's last."""
+    off = tr.offsets
+    a, b = off[:-1] + shift, off[1:] + shift
+    one = np.ones_like(a)
+    if first and both:  # backward vertices (s < 0), the seed, forward vertices
+        sd = a + np.bincount(tr.line_index()[tr.point_data["arc_length"] < 0], minlength=len(a))
+        task = np.stack([np.stack([lines, sd, a - 1, -one, -one], 1),
+                         np.stack([lines, sd + 1, b, one, sd], 1)], 1).reshape(-1, 5)
+        return task, np.stack([tr.line_data["reason_backward"], tr.line_data["reason"]],
+                              1).reshape(-1)
+    if first:
+        return np.stack([lines, a, b, one, -one], 1), tr.line_data["reason"]
+    return np.stack([lines, a + 1, b, one, a], 1), tr.line_data["reason"]
+
+
 class EvenSeeder:
     """Grows evenly spaced lines through ``field``; ``run()`` returns them as Lines.
     ``stats`` then holds the candidates traced and rejected, the trace calls, the vertices they
@@ -420,28 +439,16 @@ class EvenSeeder:
                 if starts is None:
                     starts = st.pts[last[hs]]
                 tr = self._trace(starts, direction, length)
-                off, s = tr.offsets, tr.point_data["arc_length"]
-                a, b = off[:-1] + shift, off[1:] + shift
-                lid = line[hs][::ns] if first else line[hs]
-                if first and ns == 2:  # backward vertices (s < 0), the seed, forward vertices
-                    sd = a + np.bincount(tr.line_index()[s < 0], minlength=len(a))
-                    t_b = np.stack([lid, sd, a - 1, -np.ones_like(a), -np.ones_like(a)], 1)
-                    t_f = np.stack([lid, sd + 1, b, np.ones_like(a), sd], 1)
-                    tasks.append(np.stack([t_b, t_f], 1).reshape(-1, 5))
-                    rs = np.stack([tr.line_data["reason_backward"], tr.line_data["reason"]], 1)
-                    reasons.append(rs.reshape(-1))
-                elif first:
-                    tasks.append(np.stack([lid, a, b, np.ones_like(a), -np.ones_like(a)], 1))
-                    reasons.append(tr.line_data["reason"])
-                else:  # continuations start on the half's last vertex
-                    tasks.append(np.stack([lid, a + 1, b, np.ones_like(a), a], 1))
-                    reasons.append(tr.line_data["reason"])
+                task, rs = _tasks(tr, line[hs][::ns] if first else line[hs], shift,
+                                  first, ns == 2)
+                tasks.append(task)
+                reasons.append(rs)
                 base = np.zeros((len(hs), 2))
                 if not first:
                     base[:] = np.stack([st.s[last[hs]], st.t[last[hs]]], 1)
                 bases.append(base)
                 tp.append(tr.points)
-                ts.append(s)
+                ts.append(tr.point_data["arc_length"])
                 tt.append(tr.point_data["time"])
                 who.append(hs)
                 shift += tr.n_points
