@@ -292,7 +292,8 @@ def _tasks(tr: Lines, lines, shift, first, both):
 
 class EvenSeeder:
     """Grows evenly spaced lines through ``field``; ``run()`` returns them as Lines.
-    ``stats`` then holds the candidates traced and rejected, the trace calls, the vertices they
+    ``chunk``: the arc length of a generation's first round (default 4 dsep; later rounds
+    double it).  ``stats`` then holds the candidates traced and rejected, the trace calls, the vertices they
     returned and the seconds spent in them."""
 
     def __init__(self, field: Field, dsep: float, dtest: float | None = None,
