@@ -131,29 +131,35 @@ def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
     j0, nj = _span(p[1], reach, geo, 1)
     k0, nk = _span(p[2], reach, geo, 2)
     best = -1.0
-    for di in range(ni):
-        i = (i0 + di) % n0
-        for dj in range(nj):
-            j = (j0 + dj) % n1
-            for dk in range(nk):
-                v = head[(i * n1 + j) * n2 + (k0 + dk) % n2]
-                while v >= 0:
-                    o = owner[v]
-                    if o >= 0 and (o != line or abs(sarr[v] - s) > gap):
-                        q = pts[v]
-                        d2 = 0.0
-                        for ax in range(3):
-                            d2 += _diff(p, q, geo, ax) ** 2
-                        if not entry:
-                            if d2 < r2:
-                                return 1.0
-                        else:
-                            u = _entry(a, p, q, r2, geo)
-                            if u < 0.0 and d2 < r2:  # rounding: the root lies at the end
-                                u = 1.0
-                            if u >= 0.0 and (best < 0.0 or u < best):
-                                best = u
-                    v = nxt[v]
+    cells = ni * nj * nk if ni > 0 and nj > 0 and nk > 0 else 0
+    home = _cell(p, geo)  # the likeliest to hold a hit: scanned first, where one ends the scan
+    for m in range(cells + 1):
+        if m == 0:
+            c = home
+        else:
+            di, rest = divmod(m - 1, nj * nk)
+            dj, dk = divmod(rest, nk)
+            c = (((i0 + di) % n0) * n1 + (j0 + dj) % n1) * n2 + (k0 + dk) % n2
+            if c == home:
+                continue
+        v = head[c]
+        while v >= 0:
+            o = owner[v]
+            if o >= 0 and (o != line or abs(sarr[v] - s) > gap):
+                q = pts[v]
+                d2 = 0.0
+                for ax in range(3):
+                    d2 += _diff(p, q, geo, ax) ** 2
+                if not entry:
+                    if d2 < r2:
+                        return 1.0
+                else:
+                    u = _entry(a, p, q, r2, geo)
+                    if u < 0.0 and d2 < r2:  # rounding: the root lies at the end
+                        u = 1.0
+                    if u >= 0.0 and (best < 0.0 or u < best):
+                        best = u
+            v = nxt[v]
     return best
 
 
