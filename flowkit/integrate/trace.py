@@ -39,14 +39,14 @@ def trace(field: Field, seeds, options: TraceOptions | None = None, *, backend="
     ``backend``: "numba" (CPU, all cores), "opencl[:PLATFORM[:DEVICE]]", or a callable that
     advances the lines of a ``launch.Launch`` as ``kernel.advance`` does.
     """
-    opts = _options(options, kw)
+    opts = resolve_options(options, kw)
     seeds = _seeds(seeds)
     parts = list(_batches(field, seeds, opts, backend=backend))
     if len(parts) == 1:
         lines = parts[0]  # no copy
     else:
         lines = Lines.concatenate(parts) if parts else _empty(field, opts)
-    lines.attrs = _attrs(field, opts)
+    lines.attrs = line_attrs(field, opts)
     return lines
 
 
@@ -62,18 +62,18 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
     """
     from ..io.lines_h5 import LinesWriter
 
-    opts = _options(options, kw)
+    opts = resolve_options(options, kw)
     seeds = _seeds(seeds)
     writer = None
     try:
         for part in _batches(field, seeds, opts, batch_seeds, backend):
-            part.attrs = _attrs(field, opts)
+            part.attrs = line_attrs(field, opts)
             if writer is None:
                 writer = LinesWriter.like(part, path, position_dtype=position_dtype)
             writer.append(part)
         if writer is None:
             empty = _empty(field, opts)
-            empty.attrs = _attrs(field, opts)
+            empty.attrs = line_attrs(field, opts)
             writer = LinesWriter.like(empty, path, position_dtype=position_dtype)
         return writer.close()
     except BaseException:
@@ -82,24 +82,18 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
         raise
 
 
-# -- internals --------------------------------------------------------------------------------
-def _options(options, kw) -> TraceOptions:
+# -- options, stagnation and metadata as trace resolves them (the seeders use them too) ------
+def resolve_options(options, kw) -> TraceOptions:
+    """The options ``trace(field, seeds, options, **kw)`` runs with: ``options`` (a TraceOptions
+    or None for the defaults) with ``kw`` replaced."""
     opts = options if options is not None else TraceOptions()
     if not isinstance(opts, TraceOptions):
         raise TypeError(f"options must be a TraceOptions, got {type(opts).__name__}")
     return opts.replace(**kw) if kw else opts
 
 
-def _seeds(seeds) -> np.ndarray:
-    s = np.asarray(seeds, dtype=np.float64)
-    if s.ndim == 1 and s.size == 3:
-        s = s[None, :]
-    if s.ndim != 2 or s.shape[1] != 3:
-        raise ValueError(f"seeds must have shape (n, 3), got {np.shape(seeds)}")
-    return np.ascontiguousarray(s)
-
-
-def _attrs(field: Field, opts: TraceOptions) -> dict:
+def line_attrs(field: Field, opts: TraceOptions) -> dict:
+    """The ``Lines.attrs`` that ``trace`` records: the options, the field's source and box."""
     return {**_attributes.metadata(field, opts.attributes),
         "method": opts.method_name, "rtol": str(opts.rtol), "atol": str(opts.atol),
         "parameter": opts.parameter, "direction": opts.direction,
@@ -110,6 +104,24 @@ def _attrs(field: Field, opts: TraceOptions) -> dict:
         # back the same from every writer): the viewer's outline
         "domain_bounds": " ".join(repr(float(v)) for v in field.grid.bounds.ravel()),
     }
+
+
+def stagnation_speed(field: Field, opts: TraceOptions) -> float:
+    """The speed below which ``trace`` stops a line: ``stagnation``, or ``stagnation_rel`` times
+    the field's typical speed."""
+    if opts.stagnation is not None:
+        return opts.stagnation
+    return opts.stagnation_rel * _typical_speed(field)
+
+
+# -- internals --------------------------------------------------------------------------------
+def _seeds(seeds) -> np.ndarray:
+    s = np.asarray(seeds, dtype=np.float64)
+    if s.ndim == 1 and s.size == 3:
+        s = s[None, :]
+    if s.ndim != 2 or s.shape[1] != 3:
+        raise ValueError(f"seeds must have shape (n, 3), got {np.shape(seeds)}")
+    return np.ascontiguousarray(s)
 
 
 def _empty(field, opts) -> Lines:
@@ -188,7 +200,7 @@ class _Setup:
         fo[K.O_HMIN] = opts.min_step if opts.min_step is not None else 1e-10 * cross
         fo[K.O_HMAX] = opts.max_step if opts.max_step is not None else np.inf
         fo[K.O_MAXLEN], fo[K.O_MAXTIME] = opts.max_length, opts.max_time
-        fo[K.O_STAG] = opts.stagnation if opts.stagnation is not None else opts.stagnation_rel * vtyp
+        fo[K.O_STAG] = stagnation_speed(field, opts)
         fo[K.O_CELLFAC] = CELL_CAP
         self.fo = fo
         io = np.zeros(K.NIO, np.int64)

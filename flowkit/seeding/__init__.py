@@ -12,10 +12,10 @@ from ..integrate.seeds import parse_even_spec, parse_seed_spec
 def trace_spec(field, spec: str, options=None, *, backend="numba", **kw):
     """Lines of ``field`` from the seed spec ``spec`` (any ``--seeds`` form, ``even`` included);
     ``options``/``kw`` as for ``flowkit.trace``."""
-    from ..integrate.trace import _options, trace
+    from ..integrate.trace import resolve_options, trace
     from .even import evenly_spaced
 
-    opts = _options(options, kw)
+    opts = resolve_options(options, kw)
     even = parse_even_spec(spec)
     if even is None:
         return trace(field, parse_seed_spec(spec, field), opts, backend=backend)

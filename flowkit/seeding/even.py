@@ -2,9 +2,9 @@
 
 Two distances: ``dsep``, the spacing wanted between lines, and ``dtest`` < ``dsep``, the
 closest a line may come to another.  A line is grown from a candidate seed at least ``dsep``
-from every accepted line; walking out from its seed, it is cut at its first vertex closer than
-``dtest`` to an accepted line, or to itself more than ``2 dsep`` of arc length away (a closed or
-ergodic orbit), at the exact point of the segment where that distance reaches ``dtest``; that
+from every line placed so far; walking out from its seed, it is cut at its first vertex closer
+than ``dtest`` to another line, or to itself more than ``2 dsep`` of arc length away (a closed
+or ergodic orbit), at the exact point of the segment where that distance reaches ``dtest``; that
 half ends with reason ``too_close``.  Candidates come, first, from ``dsep`` beside every
 accepted line (six directions around the tangent, about every ``dsep`` of arc length, oldest
 line first), then, when none is left, from a lattice of spacing ``dsep / 2`` over the domain in
@@ -12,14 +12,17 @@ an order drawn from the random seed; this second source is what guarantees cover
 valid point of the field ends within about ``1.5 dsep`` of a line unless the flow is too slow to
 carry one (see docs/seeding.md for the bounds and the tests that check them).
 
+A generation of candidates, mutually ``dsep`` apart, grows together in rounds: each round
+traces every live half-line a chunk of arc length further (one public ``flowkit.trace`` call per
+direction for the whole generation), then walks the new vertices line after line, in the
+generation's order, against every vertex placed so far, this round's included, and hashes the
+ones that pass.  So no vertex is ever kept within ``dtest`` of another line's, and a line cut
+early is traced at most one chunk past its cut.
+
 Distances are found with a spatial hash (cells of size ``dsep``, minimum image on periodic
-axes): a vertex is compared only with the vertices in its 27 neighbouring cells, so the cost
-grows with the number of vertices, not its square.  Candidates are traced in batches (one
-``flowkit.trace`` call per direction for a batch, mutually ``dsep`` apart), each line of a
-batch is then accepted in order against every line accepted before it, batch-mates included,
-exactly as if they had been traced one by one.  Long lines grow in chunks of arc length so a
-line that is cut early is not traced to its end first.  Everything is deterministic for a
-given random seed.
+axes): a vertex is compared only with the vertices in the cells its ball reaches, so the cost
+grows with the number of vertices, not its square.  Everything is deterministic for a given
+random seed.
 """
 
 from __future__ import annotations
@@ -31,99 +34,74 @@ import numpy as np
 from numba import njit
 
 from ..fields import Field
-from ..fields.interp import locate, trilinear_vector
 from ..integrate import attributes as _attributes
-from ..integrate import trace as _trace
 from ..integrate.options import OptionsError, TraceOptions
 from ..integrate.reasons import Reason
+from ..integrate.trace import line_attrs, resolve_options, stagnation_speed, trace
 from ..lines import Lines
 
 DIRECTIONS = 6  # candidate seeds around the tangent of a line
 MAX_BATCH = 1024
-MIN_BATCH = 64
+MIN_BATCH = 256
 SELF_GAP = 2.0  # own vertices nearer than this many dsep of arc length never cut a line
 LATTICE = 0.5  # lattice candidates every LATTICE * dsep
+CHUNK = 4.0  # the first round grows each half-line by about this many dsep ...
+GROWTH = 2.0  # ... each later round by this factor more (few calls for the long ones)
 TOO_CLOSE = int(Reason.TOO_CLOSE)
 MAX_LENGTH = int(Reason.MAX_LENGTH)
 
 
 # -- the spatial hash ---------------------------------------------------------------------------
+# ``geo`` rows: the low corner, cells per unit length, cells, period (0: not periodic), per axis.
 @njit(cache=True)
-def _cell_of(x, lo, inv, ncell, period, a):
-    d = x - lo[a]
-    if period[a] > 0.0:
-        d = d % period[a]
-    i = math.floor(d * inv[a])
-    return min(max(i, 0), ncell[a] - 1)
-
-
-@njit(cache=True)
-def _reach(p, lo, inv, ncell, period, r, a):
-    """The cell of p along axis a and the neighbours (-1, 0 or 1 each way) that a ball of
-    radius r <= the cell width reaches: only the sides it crosses (8 cells, not 27, for r at
-    most half a cell)."""
-    d = p[a] - lo[a]
-    if period[a] > 0.0:
-        d = d % period[a]
-    f = d * inv[a]
-    c = min(max(math.floor(f), 0), ncell[a] - 1)
-    below = -1 if (f - r * inv[a]) < c else 0
-    above = 1 if (f + r * inv[a]) >= c + 1 else 0
-    return c, below, above
+def _axis_cell(x, geo, a):
+    d = x - geo[0, a]
+    if geo[3, a] > 0.0:
+        d = d % geo[3, a]
+    return min(max(math.floor(d * geo[1, a]), 0), int(geo[2, a]) - 1)
 
 
 @njit(cache=True)
-def _cells_near(p, r, lo, inv, ncell, period, out):
-    """The flat indices of the cells a ball of radius r around p reaches (into ``out``, 27
-    long); returns how many."""
-    ci, i0, i1 = _reach(p, lo, inv, ncell, period, r, 0)
-    cj, j0, j1 = _reach(p, lo, inv, ncell, period, r, 1)
-    ck, k0, k1 = _reach(p, lo, inv, ncell, period, r, 2)
-    m = 0
-    for di in range(i0, i1 + 1):
-        i = _step(ci, di, ncell[0], period[0])
-        for dj in range(j0, j1 + 1):
-            j = _step(cj, dj, ncell[1], period[1])
-            for dk in range(k0, k1 + 1):
-                k = _step(ck, dk, ncell[2], period[2])
-                if i >= 0 and j >= 0 and k >= 0:
-                    out[m] = (i * ncell[1] + j) * ncell[2] + k
-                    m += 1
-    return m
+def _cell(p, geo):
+    return ((_axis_cell(p[0], geo, 0) * int(geo[2, 1]) + _axis_cell(p[1], geo, 1))
+            * int(geo[2, 2]) + _axis_cell(p[2], geo, 2))
 
 
 @njit(cache=True)
-def _step(c, d, n, period):
-    """Cell c + d along an axis of n cells: wrapped when periodic, -1 past a bounded end."""
-    c += d
-    if period > 0.0:
-        return c % n
-    return c if 0 <= c < n else -1
-
-
-@njit(cache=True)
-def _insert(head, nxt, pts, n0, n1, lo, inv, ncell, period):
+def _insert(geo, head, nxt, pts, n0, n1):
     for v in range(n0, n1):
-        i = _cell_of(pts[v, 0], lo, inv, ncell, period, 0)
-        j = _cell_of(pts[v, 1], lo, inv, ncell, period, 1)
-        k = _cell_of(pts[v, 2], lo, inv, ncell, period, 2)
-        c = (i * ncell[1] + j) * ncell[2] + k
+        c = _cell(pts[v], geo)
         nxt[v] = head[c]
         head[c] = v
 
 
 @njit(cache=True)
-def _delta(p, q, period, a):
+def _span(x, r, geo, a):
+    """The first cell and the number of cells along axis a that [x - r, x + r] reaches (a
+    periodic axis wraps: callers take the index modulo the cell count)."""
+    n = int(geo[2, a])
+    d = x - geo[0, a]
+    if geo[3, a] > 0.0:
+        d = d % geo[3, a]
+        c0 = math.floor((d - r) * geo[1, a])
+        return c0, min(math.floor((d + r) * geo[1, a]) - c0 + 1, n)
+    c0 = max(math.floor((d - r) * geo[1, a]), 0)
+    return c0, min(math.floor((d + r) * geo[1, a]), n - 1) - c0 + 1
+
+
+@njit(cache=True)
+def _diff(p, q, geo, a):
+    """p - q along axis a, the minimum image on a periodic axis."""
     d = p[a] - q[a]
-    if period[a] > 0.0:
-        d -= period[a] * np.round(d / period[a])
+    if geo[3, a] > 0.0:
+        d -= geo[3, a] * np.round(d / geo[3, a])
     return d
 
 
 @njit(cache=True)
-def _entry(a, p, q, r2, period):
+def _entry(a, p, q, r2, geo):
     """The first u in [0, 1] where a + u (p - a) is within sqrt(r2) of q (-1: never)."""
-    e0, e1, e2 = _delta(a, q, period, 0), _delta(a, q, period, 1), _delta(a, q, period, 2)
+    e0, e1, e2 = _diff(a, q, geo, 0), _diff(a, q, geo, 1), _diff(a, q, geo, 2)
     f0, f1, f2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
     cc = e0 * e0 + e1 * e1 + e2 * e2 - r2
     if cc <= 0.0:
@@ -138,231 +116,191 @@ def _entry(a, p, q, r2, period):
 
 
 @njit(cache=True)
-def _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, p, r, line, s, gap, a, out):
-    """Vertices within ``r`` of ``p`` that count: any owner when ``line`` < 0, else only the
-    vertices of ``line`` more than ``gap`` of arc length from ``s``.  Returns (whether one is
-    within r of ``p``, u): ``out`` 0 stops at the first; 2 also finds u, the smallest in
-    [0, 1] where the segment a + u (p - a) from the previous point ``a`` comes within r of one
-    of them (-1 if it never does)."""
-    cells = np.empty(27, np.int64)
+def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
+    """Over the hashed vertices that count (owner >= 0, and for the own ``line`` only those
+    more than ``gap`` of arc length from ``s``): without ``entry``, 1 if one lies within ``r``
+    of ``p``, else -1; with ``entry``, the smallest u in [0, 1] where the segment a + u (p - a)
+    comes within ``r`` of one (-1: none does)."""
     r2 = r * r
+    reach = r
+    if entry:
+        reach += math.sqrt(_diff(p, a, geo, 0) ** 2 + _diff(p, a, geo, 1) ** 2
+                           + _diff(p, a, geo, 2) ** 2)
+    n0, n1, n2 = int(geo[2, 0]), int(geo[2, 1]), int(geo[2, 2])
+    i0, ni = _span(p[0], reach, geo, 0)
+    j0, nj = _span(p[1], reach, geo, 1)
+    k0, nk = _span(p[2], reach, geo, 2)
     best = -1.0
-    hit = False
-    for c in range(_cells_near(p, r, lo, inv, ncell, period, cells)):
-        v = head[cells[c]]
+    cells = ni * nj * nk if ni > 0 and nj > 0 and nk > 0 else 0
+    home = _cell(p, geo)  # the likeliest to hold a hit: scanned first, where one ends the scan
+    for m in range(cells + 1):
+        if m == 0:
+            c = home
+        else:
+            di, rest = divmod(m - 1, nj * nk)
+            dj, dk = divmod(rest, nk)
+            c = (((i0 + di) % n0) * n1 + (j0 + dj) % n1) * n2 + (k0 + dk) % n2
+            if c == home:
+                continue
+        v = head[c]
         while v >= 0:
-            q = pts[v]
-            if line < 0 or (owner[v] == line and abs(sarr[v] - s) > gap):
+            o = owner[v]
+            if o >= 0 and (o != line or abs(sarr[v] - s) > gap):
+                q = pts[v]
                 d2 = 0.0
                 for ax in range(3):
-                    d = _delta(p, q, period, ax)
-                    d2 += d * d
-                if d2 < r2:
-                    if not out:
-                        return True, 0.0
-                    hit = True
-                elif out == 2:  # the segment may still pass within r of q
-                    u = _entry(a, p, q, r2, period)
+                    d2 += _diff(p, q, geo, ax) ** 2
+                if not entry:
+                    if d2 < r2:
+                        return 1.0
+                else:
+                    u = _entry(a, p, q, r2, geo)
+                    if u < 0.0 and d2 < r2:  # rounding: the root lies at the end
+                        u = 1.0
                     if u >= 0.0 and (best < 0.0 or u < best):
                         best = u
-                if d2 < r2 and out == 2:
-                    u = _entry(a, p, q, r2, period)
-                    if u < 0.0:  # rounding: the root lies at the end
-                        u = 1.0
-                    if best < 0.0 or u < best:
-                        best = u
             v = nxt[v]
-    return hit, best
+    return best
 
 
 @njit(cache=True)
-def _usable(hp, lo, inv, ncell, period, grid, vec, stag, cand, r):
-    """True for each candidate in a valid cell, faster than ``stag``, with no hashed vertex
-    within ``r`` (serial: called often on few points, where a thread launch costs more)."""
-    head, nxt, pts, owner, sarr = hp
-    gx, gy, gz, gper, ginv = grid
-    out = np.zeros(cand.shape[0], np.bool_)
-    for c in range(cand.shape[0]):
-        i, j, k, tx, ty, tz, ok = locate(gx, gy, gz, gper, ginv, cand[c, 0], cand[c, 1],
-                                         cand[c, 2])
-        if not ok:
+def _pick(geo, head, nxt, pts, owner, sarr, cand, at, limit, r, picked, phead, pnxt, pown,
+          ps):
+    """From ``cand[at:]``, in order, the candidates at least ``r`` from every hashed vertex and
+    from each other, into ``picked`` until ``limit``; returns (how many, the next ``at``).
+    ``phead`` (all -1, left so) and ``pnxt`` hash the picks, ``pown`` and ``ps`` are
+    zeros (the types of ``owner`` and ``sarr``: one compiled ``_scan``)."""
+    n = 0
+    while at < cand.shape[0] and n < limit:
+        p = cand[at]
+        at += 1
+        if _scan(geo, head, nxt, pts, owner, sarr, p, p, r, -1, 0.0, 0.0, False) > 0.0:
             continue
-        u, v, w, bad = trilinear_vector(vec, i, j, k, tx, ty, tz)
-        if bad or not u * u + v * v + w * w > stag * stag:
+        if _scan(geo, phead, pnxt, picked, pown, ps, p, p, r, -1, 0.0, 0.0, False) > 0.0:
             continue
-        out[c] = not _near(head, nxt, pts, owner, sarr, lo, inv, ncell, period, cand[c], r, -1,
-                           0.0, 0.0, cand[c], 0)[0]
-    return out
+        picked[n] = p
+        c = _cell(p, geo)
+        pnxt[n] = phead[c]
+        phead[c] = n
+        n += 1
+    for q in range(n):
+        phead[_cell(picked[q], geo)] = -1
+    return n, at
 
 
 @njit(cache=True)
-def _pick(cand, picked, n, limit, r, period):
-    """Append to ``picked[:n]`` the candidates at least ``r`` from every point already there,
-    until ``limit``; returns the new count."""
-    for c in range(cand.shape[0]):
-        if n >= limit:
-            break
-        far = True
-        for q in range(n):
-            d2 = 0.0
-            for a in range(3):
-                d = _delta(cand[c], picked[q], period, a)
-                d2 += d * d
-            if d2 < r * r:
-                far = False
-                break
-        if far:
-            picked[n] = cand[c]
+def _walk(geo, head, nxt, pts, owner, sarr, tarr, cnt, tp, ts, tt, task, base, r, gap, dead,
+          l0, out):
+    """Walk the traced vertices of each task in order and hash those that pass.  A task row is
+    (line, first, stop, step, prev): vertices ``tp[first:stop:step]`` of line ``line`` (its
+    owner), after vertex ``prev`` (-1: the first is the seed); ``base`` adds (s, t) to the
+    traced arc length and time.  A vertex within ``r`` of a vertex that counts (see ``_scan``)
+    cuts the task where the segment from the previous vertex first comes within ``r``; at the
+    seed it rejects the line (``dead``, indexed by line - ``l0``).  ``out`` per
+    task: (store index of the last vertex kept or -1, 1 if cut); ``cnt[0]`` counts the store."""
+    n = cnt[0]
+    for k in range(task.shape[0]):
+        line, j, stop, step, pj = task[k, 0], task[k, 1], task[k, 2], task[k, 3], task[k, 4]
+        out[k, 0], out[k, 1] = -1, 0
+        if dead[line - l0]:
+            continue
+        while j != stop:
+            p = tp[j]
+            sv, tv = ts[j] + base[k, 0], tt[j] + base[k, 1]
+            if _scan(geo, head, nxt, pts, owner, sarr, p, p, r, line, sv, gap, False) > 0.0:
+                if pj < 0:
+                    dead[line - l0] = 1
+                    break
+                a = tp[pj]
+                u = _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, sv, gap, True)
+                out[k, 1] = 1
+                if u <= 0.0:
+                    break
+                sa, ta = ts[pj] + base[k, 0], tt[pj] + base[k, 1]
+                sv, tv = sa + u * (sv - sa), ta + u * (tv - ta)
+                p = a + u * (p - a)
+                stop = j  # keep the tip, then stop
+            pts[n] = p
+            owner[n], sarr[n], tarr[n] = line, sv, tv
+            _insert(geo, head, nxt, pts, n, n + 1)
+            out[k, 0] = n
             n += 1
-    return n
+            if j == stop:
+                break
+            pj = j
+            j += step
+    cnt[0] = n
 
 
-@njit(cache=True)
-def _walk(hp, sp, S, lo, inv, ncell, period, pts, s, first, r, line, gap, add):
-    """Walk a half-line's vertices from ``first``; returns (index of the first vertex too close,
-    u on the segment before it) or (-1, 0).  ``hp`` holds the accepted lines, ``sp`` (when
-    ``line`` >= 0) this batch's own vertices, which every vertex that passes joins (``add``;
-    ``S[0]`` counts them)."""
-    headA, nxtA, ptsA, ownA, sA = hp
-    for v in range(first, pts.shape[0]):
-        prev = pts[v - 1] if v > 0 else pts[v]
-        hit = _near(headA, nxtA, ptsA, ownA, sA, lo, inv, ncell, period, pts[v], r, -1, 0.0,
-                    0.0, prev, 0)[0]
-        if line >= 0 and not hit:
-            headS, nxtS, ptsS, ownS, sS = sp
-            hit = _near(headS, nxtS, ptsS, ownS, sS, lo, inv, ncell, period, pts[v], r, line,
-                        s[v], gap, prev, 0)[0]
-        if hit:  # cut where the segment first comes within r of either set
-            if v == 0:
-                return v, 0.0
-            u = _near(headA, nxtA, ptsA, ownA, sA, lo, inv, ncell, period, pts[v], r, -1, 0.0,
-                      0.0, prev, 2)[1]
-            if line >= 0:
-                headS, nxtS, ptsS, ownS, sS = sp
-                w = _near(headS, nxtS, ptsS, ownS, sS, lo, inv, ncell, period, pts[v], r, line,
-                          s[v], gap, prev, 2)[1]
-                if w >= 0.0 and (u < 0.0 or w < u):
-                    u = w
-            return v, max(u, 0.0)
-        if add and line >= 0:
-            headS, nxtS, ptsS, ownS, sS = sp
-            n = S[0]
-            ptsS[n] = pts[v]
-            ownS[n] = line
-            sS[n] = s[v]
-            _insert(headS, nxtS, ptsS, n, n + 1, lo, inv, ncell, period)
-            S[0] = n + 1
-    return -1, 0.0
-
-
-@njit(cache=True)
-def _beside(p, every, dsep, ndir):
-    """Points ``dsep`` from every ``every``-th vertex of polyline ``p``, in ``ndir`` directions
-    around its tangent (central differences), in a frame fixed by the axis the tangent is least
-    aligned with."""
-    n = p.shape[0]
-    out = np.empty((((n + every - 1) // every) * ndir if n > 1 else 0, 3))
-    m = 0
-    for v in range(0, n if n > 1 else 0, every):
-        a, b = max(v - 1, 0), min(v + 1, n - 1)
-        t = p[b] - p[a]
-        norm = math.sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2])
-        if norm == 0.0:
-            continue
-        t = t / norm
-        ref = np.zeros(3)
-        ref[np.argmin(np.abs(t))] = 1.0
-        n1 = np.cross(t, ref)
-        n1 /= math.sqrt(n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2])
-        n2 = np.cross(t, n1)
-        for k in range(ndir):
-            ang = 2.0 * math.pi * k / ndir
-            out[m] = p[v] + dsep * (math.cos(ang) * n1 + math.sin(ang) * n2)
-            m += 1
-    return out[:m]
-
-
-class _Hash:
-    """Vertices with their line and arc length, hashed on cells of size >= ``size``."""
+class _Store:
+    """Every vertex placed so far with its line (owner; -1: dropped), arc length and time,
+    hashed on cells of size >= ``size``."""
 
     def __init__(self, bounds, period, size):
         extent = bounds[:, 1] - bounds[:, 0]
-        self.lo = bounds[:, 0].copy()
-        self.period = np.asarray(period, np.float64)
-        self.ncell = np.maximum(1, np.floor(extent / size)).astype(np.int64)
-        self.inv = self.ncell / np.where(extent > 0, extent, 1.0)
-        self.head = np.full(int(np.prod(self.ncell)), -1, np.int64)
-        self.n = 0
-        self._alloc(4096)
+        ncell = np.maximum(1, np.floor(extent / size))
+        self.geo = np.array([bounds[:, 0], ncell / np.where(extent > 0, extent, 1.0), ncell,
+                             np.asarray(period, np.float64)])
+        self.head = np.full(int(np.prod(ncell)), -1, np.int64)
+        self.cnt = np.zeros(1, np.int64)
+        self.pts, self.nxt = np.empty((0, 3)), np.empty(0, np.int64)
+        self.owner, self.s, self.t = np.empty(0, np.int64), np.empty(0), np.empty(0)
+        self.reserve(4096)
 
-    def _alloc(self, cap):
-        old = getattr(self, "pts", None)
-        pts, nxt = np.empty((cap, 3)), np.empty(cap, np.int64)
-        owner, s = np.empty(cap, np.int64), np.empty(cap)
-        if old is not None:
-            pts[:self.n], nxt[:self.n] = self.pts[:self.n], self.nxt[:self.n]
-            owner[:self.n], s[:self.n] = self.owner[:self.n], self.s[:self.n]
-        self.pts, self.nxt, self.owner, self.s = pts, nxt, owner, s
+    @property
+    def n(self) -> int:
+        return int(self.cnt[0])
 
     def reserve(self, extra):
-        if self.n + extra > self.pts.shape[0]:
-            self._alloc(max(2 * self.pts.shape[0], self.n + extra))
+        cap, n = self.pts.shape[0], self.n
+        if n + extra <= cap:
+            return
+        cap = max(2 * cap, n + extra)
+        for name in ("pts", "nxt", "owner", "s", "t"):
+            old = getattr(self, name)
+            new = np.empty((cap, *old.shape[1:]), old.dtype)
+            new[:n] = old[:n]
+            setattr(self, name, new)
 
     def add(self, pts, owner, s):
-        m = len(pts)
+        """Hash more vertices (time 0)."""
+        n, m = self.n, len(pts)
         self.reserve(m)
-        self.pts[self.n:self.n + m], self.owner[self.n:self.n + m] = pts, owner
-        self.s[self.n:self.n + m] = s
-        _insert(self.head, self.nxt, self.pts, self.n, self.n + m, self.lo, self.inv,
-                self.ncell, self.period)
-        self.n += m
-
-    def clear(self):
-        self.head[:] = -1
-        self.n = 0
+        self.pts[n:n + m], self.owner[n:n + m], self.s[n:n + m], self.t[n:n + m] = pts, owner, s, 0
+        _insert(self.geo, self.head, self.nxt, self.pts, n, n + m)
+        self.cnt[0] = n + m
 
     @property
-    def arrays(self):
-        return self.head, self.nxt, self.pts, self.owner, self.s
-
-    @property
-    def grid(self):
-        return self.lo, self.inv, self.ncell, self.period
+    def hashed(self):
+        """What ``_scan`` reads: (geo, head, nxt, pts, owner, s)."""
+        return self.geo, self.head, self.nxt, self.pts, self.owner, self.s
 
 
 # -- the seeder ---------------------------------------------------------------------------------
-class _Half:
-    """One direction of a line being grown: vertices (from the seed outward), t, s, counts."""
-
-    def __init__(self, sign):
-        self.sign = sign
-        self.pts, self.t, self.s = np.zeros((0, 3)), np.zeros(0), np.zeros(0)
-        self.reason, self.nacc, self.nrej, self.flags = 0, 0, 0, {}
-        self.alive = True
-
-    def extend(self, pts, t, s):
-        if len(self.pts):  # a continuation starts on the last vertex
-            pts, t, s = pts[1:], t[1:] + self.t[-1], s[1:] + self.s[-1]
-        self.pts = np.concatenate([self.pts, pts])
-        self.t, self.s = np.concatenate([self.t, t]), np.concatenate([self.s, s])
-
-    def cut(self, v, u):
-        """Keep vertices [0, v) and the point u along the segment to v; too_close."""
-        keep = slice(0, v)
-        if v > 0 and u > 0.0:
-            a, b = v - 1, v
-            tip = self.pts[a] + u * (self.pts[b] - self.pts[a])
-            tt = self.t[a] + u * (self.t[b] - self.t[a])
-            ss = self.s[a] + u * (self.s[b] - self.s[a])
-            self.pts = np.concatenate([self.pts[keep], tip[None]])
-            self.t, self.s = np.append(self.t[keep], tt), np.append(self.s[keep], ss)
-        else:
-            self.pts, self.t, self.s = self.pts[keep], self.t[keep], self.s[keep]
-        self.reason, self.alive = TOO_CLOSE, False
+def _tasks(tr: Lines, lines, shift, first, both):
+    """The ``_walk`` tasks of a trace call's lines (vertex indices from ``shift``) and their
+    reasons, in half order: a first round's lines start at their seeds (direction both: the
+    backward half walks from the seed down to the first vertex, the forward one on from the
+    seed); a continuation starts after its first vertex, the half's last."""
+    off = tr.offsets
+    a, b = off[:-1] + shift, off[1:] + shift
+    one = np.ones_like(a)
+    if first and both:  # backward vertices (s < 0), the seed, forward vertices
+        sd = a + np.bincount(tr.line_index()[tr.point_data["arc_length"] < 0], minlength=len(a))
+        task = np.stack([np.stack([lines, sd, a - 1, -one, -one], 1),
+                         np.stack([lines, sd + 1, b, one, sd], 1)], 1).reshape(-1, 5)
+        return task, np.stack([tr.line_data["reason_backward"], tr.line_data["reason"]],
+                              1).reshape(-1)
+    if first:
+        return np.stack([lines, a, b, one, -one], 1), tr.line_data["reason"]
+    return np.stack([lines, a + 1, b, one, a], 1), tr.line_data["reason"]
 
 
 class EvenSeeder:
-    """Grows evenly spaced lines through ``field``; ``run()`` returns them as Lines."""
+    """Grows evenly spaced lines through ``field``; ``run()`` returns them as Lines.
+    ``chunk``: the arc length of a generation's first round (default 4 dsep; later rounds
+    double it).  ``stats`` then holds the candidates traced and rejected, the trace calls, the vertices they
+    returned and the seconds spent in them."""
 
     def __init__(self, field: Field, dsep: float, dtest: float | None = None,
                  options: TraceOptions | None = None, *, seed: int = 0, backend="numba",
@@ -389,28 +327,31 @@ class EvenSeeder:
         self.seed, self.backend, self.max_lines = int(seed), backend, max_lines
         g = field.grid
         self.bounds, self.period = g.bounds, np.array(g.period, np.float64)
-        diag = float(np.linalg.norm(self.bounds[:, 1] - self.bounds[:, 0]))
         _attributes.check(field, opts.attributes)
-        self.chunk = chunk or max(diag, 8 * self.dsep)
-        if math.isfinite(opts.max_time):  # time and length chunks cannot both add up: one go
-            self.chunk = math.inf
-        elif math.isfinite(opts.max_length):  # equal chunks that add up to max_length exactly
-            self.chunk = opts.max_length / max(1, math.ceil(opts.max_length / self.chunk))
-        vtyp = _trace._typical_speed(field)
-        self.stag = opts.stagnation if opts.stagnation is not None else opts.stagnation_rel * vtyp
+        self.chunk = self._chunk(chunk or CHUNK * self.dsep)
+        self.stag = stagnation_speed(field, opts)
         self.signs = {"forward": (1,), "backward": (-1,), "both": (-1, 1)}[opts.direction]
-        self.accepted = _Hash(self.bounds, self.period, self.dsep)
-        self.own = _Hash(self.bounds, self.period, self.dsep)
-        self.lines: list[list[_Half]] = []
-        self.stats = {"traced": 0, "rejected": 0, "trace_seconds": 0.0}
+        self.store = _Store(self.bounds, self.period, self.dsep)
+        self.lines: dict[str, list] = {}  # per generation, arrays of line data
+        self.stats = {"traced": 0, "rejected": 0, "trace_calls": 0, "trace_vertices": 0,
+                      "trace_seconds": 0.0}
+
+    def _chunk(self, chunk):
+        """The arc length of the first round: a whole number of vertex spacings (so vertices
+        stay regular across rounds, which double it); one round with max_time (time and length
+        rounds cannot both add up)."""
+        opts = self.opts
+        if math.isfinite(opts.max_time):
+            return math.inf
+        if opts.spacing is not None:
+            chunk = max(1, round(chunk / opts.spacing)) * opts.spacing
+        return chunk
 
     # -- candidates -----------------------------------------------------------------------------
     def _usable(self, cand):
-        """Candidates inside valid cells, fast enough to move, dsep from accepted lines."""
-        cand = np.ascontiguousarray(cand, np.float64)
-        ok = _usable(self.accepted.arrays, *self.accepted.grid, self.field.grid.kernel_args(),
-                     self.field.vector, self.stag, cand, self.dsep)
-        return cand[ok]
+        """The candidates in valid cells where the flow is faster than the stagnation speed."""
+        v, status = self.field.sample(cand)
+        return cand[(status == 0) & (np.einsum("ij,ij->i", v, v) > self.stag ** 2)]
 
     def _lattice(self, rng):
         lo, hi = self.bounds[:, 0], self.bounds[:, 1]
@@ -418,179 +359,196 @@ class EvenSeeder:
         h = (hi - lo) / n
         axes = [lo[a] + h[a] * (np.arange(n[a]) + 0.5) for a in range(3)]
         pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-        return pts[rng.permutation(len(pts))]
+        return self._usable(pts[rng.permutation(len(pts))])
 
-    def _beside(self, half_pts):
-        """Candidates dsep beside a line, about every dsep along it, in six directions."""
+    def _beside(self, n0):
+        """Candidates dsep beside the lines kept from store index ``n0`` on, line after line,
+        about every dsep along each, in six directions around its tangent (central differences)
+        in a frame fixed by the axis the tangent is least aligned with."""
+        st = self.store
+        idx = n0 + np.flatnonzero(st.owner[n0:st.n] >= 0)
+        if not len(idx):
+            return np.zeros((0, 3))
+        idx = idx[np.lexsort((st.s[idx], st.owner[idx]))]
+        p, own = st.pts[idx], st.owner[idx]
+        start = np.flatnonzero(np.r_[True, own[1:] != own[:-1]])
+        end = np.r_[start[1:], len(own)]
+        first = np.repeat(start, end - start)
+        last = np.repeat(end - 1, end - start)
+        i = np.arange(len(own))
         h = self.opts.spacing  # None for the stiff methods: vertices at their steps
         if h is None:
-            seg = np.linalg.norm(np.diff(half_pts, axis=0), axis=1)
+            seg = np.linalg.norm(np.diff(p, axis=0), axis=1)[own[1:] == own[:-1]]
             h = float(seg.mean()) if len(seg) else self.dsep
         every = max(1, round(self.dsep / h)) if h > 0 else 1
-        return _beside(np.ascontiguousarray(half_pts), every, self.dsep, DIRECTIONS)
+        at = i[((i - first) % every == 0) & (last > first)]
+        t = p[np.minimum(at + 1, last[at])] - p[np.maximum(at - 1, first[at])]
+        norm = np.linalg.norm(t, axis=1)
+        at, t = at[norm > 0], t[norm > 0] / norm[norm > 0, None]
+        ref = np.zeros_like(t)
+        ref[np.arange(len(t)), np.argmin(np.abs(t), axis=1)] = 1.0
+        n1 = np.cross(t, ref)
+        n1 /= np.linalg.norm(n1, axis=1)[:, None]
+        n2 = np.cross(t, n1)
+        ang = 2.0 * np.pi * np.arange(DIRECTIONS) / DIRECTIONS
+        ring = np.cos(ang)[None, :, None] * n1[:, None] + np.sin(ang)[None, :, None] * n2[:, None]
+        return self._usable((p[at][:, None] + self.dsep * ring).reshape(-1, 3))
+
+    def _pick(self, cand, at, limit):
+        st = self.store
+        picked = np.empty((limit, 3))
+        n, at = _pick(*st.hashed, cand, at, limit, self.dsep, picked, self._phead,
+                      np.empty(limit, np.int64), np.zeros(limit, np.int64), np.zeros(limit))
+        return picked[:n], at
 
     # -- growing --------------------------------------------------------------------------------
-    def _trace(self, starts, sign, length):
+    def _trace(self, starts, direction, length):
         t0 = time.perf_counter()
-        direction = {1: "forward", -1: "backward", 0: "both"}[sign]
         o = self.opts.replace(direction=direction, max_length=length,
                               attributes=("time", "arc_length"), progress=False)
-        lines = _trace.trace(self.field, starts, o, backend=self.backend)
+        lines = trace(self.field, starts, o, backend=self.backend)
         self.stats["trace_seconds"] += time.perf_counter() - t0
+        self.stats["trace_calls"] += 1
+        self.stats["trace_vertices"] += lines.n_points
         return lines
 
-    def _grow(self, seeds):
-        """Halves of the lines from ``seeds``, grown chunk by chunk and cut against the accepted
-        lines and themselves."""
-        self.own.clear()
-        batch = [[_Half(sg) for sg in self.signs] for _ in seeds]
+    def _grow(self, seeds, l0):
+        """Grow the lines ``l0, l0 + 1, ...`` from ``seeds`` round by round into the store;
+        returns their line data (``dead``: rejected)."""
+        st, opts, signs = self.store, self.opts, self.signs
+        nl, ns = len(seeds), len(signs)
+        nh = nl * ns  # half j of line l is h = l * ns + j, direction signs[j]
+        sign = np.tile(np.array(signs), nl)
+        line = l0 + np.arange(nh) // ns
+        dead = np.zeros(nl, np.int8)
+        reason = np.zeros(nh, np.int8)
+        alive = np.ones(nh, bool)
+        last = np.full(nh, -1, np.int64)  # store index of each half's last vertex
+        steps = np.zeros(nh, np.int64)
+        ld = {k: np.zeros(nl, np.int64) for k in ("n_accepted", "n_rejected", "n_crossing")}
+        flags = {k: np.zeros(nl, np.int8) for k in ("stiff", self.retraced) if k is not None}
+        n0, grown, first, chunk = st.n, 0.0, True, self.chunk
         gap = SELF_GAP * self.dsep
-        grown = 0.0
+        total = opts.max_length
         while True:
-            todo = [(i, h) for i, hs in enumerate(batch) for h in hs if h.alive]
-            if not todo:
-                return batch
-            length = min(self.chunk, self.opts.max_length - grown)
+            todo = np.flatnonzero(alive & (dead[line - l0] == 0))
+            if not len(todo):
+                break
+            length = min(chunk, total - grown)
+            chunk *= GROWTH
             grown += length
-            # a chunk's max_length end continues while the whole line has length left
-            total = self.opts.max_length
             more = math.isinf(total) or total - grown > 1e-12 * total
-            fresh = all(not len(h.pts) for _, h in todo)
-            if fresh and len(self.signs) == 2:  # one call for both halves of every line
-                traced = self._trace(seeds, 0, length)
-                self._take(traced, [(i, batch[i]) for i in range(len(seeds))], more, gap)
-                continue
-            for sign in self.signs:
-                part = [(i, h) for i, h in todo if h.sign == sign]
-                if part:
-                    starts = np.array([h.pts[-1] if len(h.pts) else seeds[i] for i, h in part])
-                    traced = self._trace(starts, sign, length)
-                    self._take(traced, [(i, [h]) for i, h in part], more, gap)
-
-    def _take(self, traced, tasks, more, gap):
-        """Append each traced line to its half (or split it between both halves, seed first
-        in each), then walk the new vertices: cut where too close, else end or continue."""
-        for k, (i, halves) in enumerate(tasks):
-            p, t = traced.line_points(k), traced.line_attribute("time", k)
-            s = traced.line_attribute("arc_length", k)
-            ld = {key: int(v[k]) for key, v in traced.line_data.items()}
-            if len(halves) == 2:  # direction both: backward vertices (s < 0), seed, forward
-                b = int(np.count_nonzero(s < 0))
-                parts = [(p[:b + 1][::-1], t[:b + 1][::-1], s[:b + 1][::-1],
-                          ld["reason_backward"]), (p[b:], t[b:], s[b:], ld["reason"])]
-            else:
-                parts = [(p, t, s, ld["reason"])]
-            for j, (h, (pp, tt, ss, reason)) in enumerate(zip(halves, parts)):
-                first = len(h.pts)
-                h.extend(pp, tt, ss)
-                h.reason = reason
-                if j == len(halves) - 1:  # step counts of the call go to the last half
-                    h.nacc += ld["n_accepted"]
-                    h.nrej += ld["n_rejected"]
-                for key in ("stiff", self.retraced):
-                    if key in ld:
-                        h.flags[key] = max(h.flags.get(key, 0), ld[key])
-                self.own.reserve(len(h.pts))
-                count = np.array([self.own.n], np.int64)
-                v, u = _walk(self.accepted.arrays, self.own.arrays, count, *self.accepted.grid,
-                             h.pts, h.s, first, self.dtest, i, gap, True)
-                self.own.n = int(count[0])
-                if v >= 0:
-                    h.cut(v, u)
-                elif not (h.reason == MAX_LENGTH and len(h.pts) > 1 and more
-                          and h.nacc + h.nrej < self.opts.max_steps):
-                    h.alive = False  # ended for its own reason (the kernel's)
-
-    def _accept(self, halves) -> bool:
-        """Cut the line against every accepted line; keep it (and hash it) if anything is left."""
-        for h in halves:
-            v, u = _walk(self.accepted.arrays, self.own.arrays, np.zeros(1, np.int64),
-                         *self.accepted.grid, h.pts, h.s, 0, self.dtest, -1, 0.0, False)
-            if v == 0:
-                return False  # the seed itself is too close
-            if v > 0:
-                h.cut(v, u)
-        if sum(len(h.pts) for h in halves) - (len(halves) - 1) < 2:
-            return False
-        line = len(self.lines)
-        for h in halves:
-            self.accepted.add(h.pts, line, h.s)
-        self.lines.append(halves)
-        return True
+            calls = ([(opts.direction, todo, seeds)] if first else
+                     [(d, todo[sign[todo] == sg], None) for d, sg in (("backward", -1),
+                                                                      ("forward", 1))])
+            tasks, bases, tp, ts, tt, who, reasons = [], [], [], [], [], [], []
+            shift = 0
+            for direction, hs, starts in calls:
+                if not len(hs):
+                    continue
+                if starts is None:
+                    starts = st.pts[last[hs]]
+                tr = self._trace(starts, direction, length)
+                task, rs = _tasks(tr, line[hs][::ns] if first else line[hs], shift,
+                                  first, ns == 2)
+                tasks.append(task)
+                reasons.append(rs)
+                base = np.zeros((len(hs), 2))
+                if not first:
+                    base[:] = np.stack([st.s[last[hs]], st.t[last[hs]]], 1)
+                bases.append(base)
+                tp.append(tr.points)
+                ts.append(tr.point_data["arc_length"])
+                tt.append(tr.point_data["time"])
+                who.append(hs)
+                shift += tr.n_points
+                steps_k = tr.line_data["n_accepted"] + tr.line_data["n_rejected"]
+                # a call's step counts go to a line's last half (direction both: both halves')
+                steps[hs[ns - 1::ns] if first else hs] += steps_k
+                li = line[hs][::ns] - l0 if first else line[hs] - l0
+                for k, v in ld.items():
+                    if k in tr.line_data:
+                        np.add.at(v, li, tr.line_data[k])
+                for k, v in flags.items():
+                    if k in tr.line_data:
+                        np.maximum.at(v, li, tr.line_data[k])
+            task, hs = np.concatenate(tasks), np.concatenate(who)
+            order = np.argsort(hs, kind="stable")  # walk lines in the generation's order
+            task, hs = np.ascontiguousarray(task[order]), hs[order]
+            base = np.ascontiguousarray(np.concatenate(bases)[order])
+            pts = np.concatenate(tp)
+            st.reserve(len(pts) + len(task))
+            out = np.empty((len(task), 2), np.int64)
+            _walk(*st.hashed, st.t, st.cnt, pts, np.concatenate(ts), np.concatenate(tt), task,
+                  base, self.dtest, gap, dead, l0, out)
+            reason[hs] = np.concatenate(reasons)[order]
+            reason[hs[out[:, 1] == 1]] = TOO_CLOSE
+            moved = out[:, 0] >= 0
+            last[hs[moved]] = out[moved, 0]
+            alive[hs] = ((out[:, 1] == 0) & moved & (reason[hs] == MAX_LENGTH) & more
+                         & (steps[hs] < opts.max_steps))
+            first = False
+        # a line with fewer than two vertices is no line: drop what it left in the store
+        own = st.owner[n0:st.n]
+        short = np.bincount(own - l0, minlength=nl) < 2
+        own[short[own - l0]] = -1
+        dead |= short
+        out = {"dead": dead.astype(bool), "seed": seeds,
+               "reason": reason[ns - 1::ns], **ld, **flags}
+        if ns == 2:
+            out["reason_backward"] = reason[0::2]
+        return out, n0
 
     def run(self) -> Lines:
         rng = np.random.default_rng(self.seed)
         lattice = self._lattice(rng)
-        queue, at, lat = [], 0, 0  # candidates beside accepted lines, oldest line first
-        while self.max_lines is None or len(self.lines) < self.max_lines:
-            limit = min(MAX_BATCH, max(MIN_BATCH, len(self.lines)))
+        self._phead = np.full(self.store.head.shape, -1, np.int64)
+        queue, at, lat, nlines, l0 = np.zeros((0, 3)), 0, 0, 0, 0
+        while self.max_lines is None or nlines < self.max_lines:
+            limit = min(MAX_BATCH, max(MIN_BATCH, nlines))
             if self.max_lines is not None:
-                limit = min(limit, self.max_lines - len(self.lines))
-            picked, n = np.empty((limit, 3)), 0
-            while n < limit and at < len(queue):
-                n = _pick(self._usable(queue[at]), picked, n, limit, self.dsep, self.period)
-                queue[at] = None
-                at += 1
-            while not n and lat < len(lattice):
-                block = lattice[lat:lat + 4 * limit]
-                lat += len(block)
-                n = _pick(self._usable(block), picked, n, limit, self.dsep, self.period)
-            if not n:
+                limit = min(limit, self.max_lines - nlines)
+            seeds, at = self._pick(queue, at, limit)
+            if not len(seeds):
+                seeds, lat = self._pick(lattice, lat, limit)
+            if not len(seeds):
                 break
-            seeds = picked[:n]
             self.stats["traced"] += len(seeds)
-            for halves in self._grow(seeds):
-                if self._accept(halves):
-                    queue += [self._beside(h.pts) for h in halves]
-                else:
-                    self.stats["rejected"] += 1
+            data, n0 = self._grow(seeds, l0)
+            l0 += len(seeds)
+            for k, v in data.items():
+                self.lines.setdefault(k, []).append(v)
+            self.stats["rejected"] += int(data["dead"].sum())
+            nlines += int((~data["dead"]).sum())
+            queue = np.concatenate([queue[at:], self._beside(n0)])
+            at = 0
         return self._lines()
 
     # -- output ---------------------------------------------------------------------------------
     def _lines(self) -> Lines:
-        opts, both = self.opts, self.opts.direction == "both"
-        pts, t, s, counts, seeds = [], [], [], [], []
-        ld = {"reason": [], "n_accepted": [], "n_rejected": [], "stiff": []}
-        if both:
-            ld["reason_backward"] = []
-        if self.retraced is not None:
-            ld[self.retraced] = []
-        for halves in self.lines:
-            if both:
-                b, f = halves
-                parts = [(b.pts[::-1][:-1], b.t[::-1][:-1], b.s[::-1][:-1]), (f.pts, f.t, f.s)]
-                ld["reason"].append(f.reason)
-                ld["reason_backward"].append(b.reason)
-            else:
-                (h,) = halves
-                parts = [(h.pts, h.t, h.s)]
-                ld["reason"].append(h.reason)
-            for p, tt, ss in parts:
-                pts.append(p)
-                t.append(tt)
-                s.append(ss)
-            counts.append(sum(len(p) for p, _, _ in parts))
-            seeds.append(halves[-1].pts[0])
-            ld["n_accepted"].append(sum(h.nacc for h in halves))
-            ld["n_rejected"].append(sum(h.nrej for h in halves))
-            ld["stiff"].append(max(h.flags.get("stiff", 0) for h in halves))
-            if self.retraced is not None:
-                ld[self.retraced].append(max(h.flags.get(self.retraced, 0) for h in halves))
-        n = len(self.lines)
-        pts = np.concatenate(pts) if pts else np.zeros((0, 3))
-        t = np.concatenate(t) if t else np.zeros(0)
-        s = np.concatenate(s) if s else np.zeros(0)
+        opts, st = self.opts, self.store
+        own = st.owner[:st.n]
+        keep = np.flatnonzero(own >= 0)
+        sign = -1.0 if opts.direction == "backward" else 1.0  # a line starts at its seed
+        keep = keep[np.lexsort((sign * st.s[keep], own[keep]))]
+        ids, counts = np.unique(own[keep], return_counts=True)
+        n = len(ids)
         offsets = np.zeros(n + 1, np.int64)
         np.cumsum(counts, out=offsets[1:])
-        dtypes = {"reason": np.int8, "reason_backward": np.int8, "stiff": np.int8,
-                  self.retraced: np.int8, "n_accepted": np.int32, "n_rejected": np.int32}
+        both = opts.direction == "both"
+        dtypes = {"reason": np.int8, **({"reason_backward": np.int8} if both else {}),
+                  "n_accepted": np.int32, "n_rejected": np.int32, "n_crossing": np.int32,
+                  "stiff": np.int8, **({self.retraced: np.int8} if self.retraced is not None else {})}
+        cat = {k: np.concatenate(self.lines[k]) if self.lines else np.zeros(0)
+               for k in [*dtypes, "seed"]}
         line_data = {"seed_id": np.arange(n, dtype=np.int64)}
-        line_data.update({k: np.array(v, dtypes[k]) for k, v in ld.items()})
-        seeds = np.array(seeds).reshape(-1, 3)
+        line_data.update({k: cat[k][ids].astype(dt) for k, dt in dtypes.items()})
+        seeds = cat["seed"][ids].reshape(-1, 3)
         line_data["seed"] = seeds
-        seed_of = np.repeat(seeds, np.diff(offsets), axis=0)
+        pts, t, s = st.pts[keep], st.t[keep], st.s[keep]
+        seed_of = np.repeat(seeds, counts, axis=0)
         point_data = _attributes.compute(self.field, opts.attributes, pts, t, s, seed_of)
-        attrs = _trace._attrs(self.field, opts)
+        attrs = line_attrs(self.field, opts)
         attrs.update(seeding="even", dsep=self.dsep, dtest=self.dtest, seeding_seed=self.seed,
                      candidates_traced=self.stats["traced"],
                      candidates_rejected=self.stats["rejected"])
@@ -605,6 +563,6 @@ def evenly_spaced(field: Field, dsep: float, dtest: float | None = None,
     (spacing defaults to dtest / 2, except for the stiff methods, which place vertices at their
     steps; count is refused).  line_data ``seed`` holds each line's
     seed, ``reason`` (and ``reason_backward``) say ``too_close`` where a half was cut."""
-    opts = _trace._options(options, kw)
+    opts = resolve_options(options, kw)
     return EvenSeeder(field, dsep, dtest, opts, seed=seed, backend=backend,
                       max_lines=max_lines).run()

@@ -15,28 +15,33 @@ import numpy as np
 from numba import njit
 
 from ..lines import Lines
-from .even import _cells_near, _delta, _Hash
+from .even import _diff, _span, _Store
 
 
 @njit(cache=True)
-def _nearest_owner(head, nxt, pts, owner, sarr, lo, inv, ncell, period, query, r):
+def _nearest_owner(geo, head, nxt, pts, owner, query, r):
     """Owner of the nearest hashed vertex within r of each query point (-1: none)."""
     out = np.full(query.shape[0], -1, np.int64)
-    cells = np.empty(27, np.int64)
+    n0, n1, n2 = int(geo[2, 0]), int(geo[2, 1]), int(geo[2, 2])
     for n in range(query.shape[0]):
         p = query[n]
         best = r * r
-        for c in range(_cells_near(p, r, lo, inv, ncell, period, cells)):
-            v = head[cells[c]]
-            while v >= 0:
-                d2 = 0.0
-                for a in range(3):
-                    d = _delta(p, pts[v], period, a)
-                    d2 += d * d
-                if d2 < best:
-                    best = d2
-                    out[n] = owner[v]
-                v = nxt[v]
+        i0, ni = _span(p[0], r, geo, 0)
+        j0, nj = _span(p[1], r, geo, 1)
+        k0, nk = _span(p[2], r, geo, 2)
+        for di in range(ni):
+            for dj in range(nj):
+                for dk in range(nk):
+                    c = (((i0 + di) % n0) * n1 + (j0 + dj) % n1) * n2 + (k0 + dk) % n2
+                    v = head[c]
+                    while v >= 0:
+                        d2 = 0.0
+                        for a in range(3):
+                            d2 += _diff(p, pts[v], geo, a) ** 2
+                        if d2 < best:
+                            best = d2
+                            out[n] = owner[v]
+                        v = nxt[v]
     return out
 
 
@@ -64,12 +69,13 @@ def prune(lines: Lines, distance: float, fraction: float = 0.8, period=None) -> 
             b[a] = [0.0, period[a]]
     pad = np.where(period > 0, 0.0, distance)
     bounds = np.stack([b[:, 0] - pad, b[:, 1] + pad], axis=1)
-    hashed = _Hash(bounds, period, distance)
+    hashed = _Store(bounds, period, distance)
     keep = np.zeros(len(lines), bool)
     removed, by, covered = [], [], []
     for i in order:
         p = np.ascontiguousarray(lines.line_points(i), np.float64)
-        near = _nearest_owner(*hashed.arrays, *hashed.grid, p, float(distance)) if len(p) else p
+        near = (_nearest_owner(*hashed.hashed[:5], p, float(distance)) if len(p) else
+                np.zeros(0, np.int64))
         share = float(np.mean(near >= 0)) if len(p) else 1.0
         if len(p) and share >= fraction:
             removed.append(int(ids[i]))
