@@ -134,8 +134,10 @@ class Rake:
             if lo is not None:  # every handle stays inside: the translation is limited
                 pts = np.array(list(h.values()))
                 delta = np.clip(delta, lo - pts.min(axis=0), hi - pts.max(axis=0))
-            a = _round(np.array(self.a) + delta, decimals)
-            return dataclasses.replace(self, a=a)
+            new = {"a": _round(np.array(self.a) + delta, decimals)}
+            if self.kind == "line":  # its end is a point too (a plane's u, v are edges)
+                new["b"] = _round(np.array(self.b) + delta, decimals)
+            return dataclasses.replace(self, **new)
         if lo is not None:
             to = np.clip(to, lo, hi)
         p = _round(to, decimals)
