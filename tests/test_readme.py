@@ -57,7 +57,8 @@ def test_readme_python_example_runs(tmp_path, monkeypatch):
 def test_readme_flowkit_lines_run(tmp_path, monkeypatch, capsys, display):
     cmds = readme_commands()
     assert [c[0] for c in cmds] == ["info", "trace", "trace", "trace", "info", "render", "render",
-                                    "render", "scene", "view", "trace", "bench", "compile"], cmds
+                                    "render", "scene", "view", "view", "trace", "bench",
+                                    "compile"], cmds
     (tmp_path / "run.vtu").symlink_to((SHARED / "hotroom_t2000.vtu").resolve())
     for t in ("0400", "2000"):
         (tmp_path / f"run_{t}.vtu").symlink_to((SHARED / f"hotroom_t{t}.vtu").resolve())
@@ -97,7 +98,7 @@ def test_readme_flowkit_lines_run(tmp_path, monkeypatch, capsys, display):
     gif = Image.open("arrows.gif")
     assert gif.n_frames == 24 and gif.size == (320, 180)
     assert "attributes traced: speed, T" in outputs["scene"][0]
-    assert drawn == [None]
+    assert drawn == [None, None]  # the lines file, and the scene with live seeding
     assert re.search(r"^examples/hotroom_scene.toml: (all from the cache|compiled)",
                      outputs["compile"][0], re.MULTILINE)
     # the series traced on two workers: the last command of the trace lines wrote lines.h5

@@ -15,7 +15,8 @@
 - ``parse_seed_spec(spec, field=None)``: the CLI's ``--seeds`` value, see ``SPEC_HELP``;
   ``density`` and ``where`` draw from the field's data (flowkit.seeding.data).
 - ``line_spec``, ``plane_spec``, ``points_spec``: the spec strings of those forms (exact: they
-  parse back to the same points), e.g. for a rake placed in the viewer.
+  parse back to the same points), e.g. for a rake placed in the viewer; ``parse_rake_spec``
+  the arguments of a ``line:`` or ``plane:`` spec (the viewer's rake starts from them).
 
 ``even:DSEP[:DTEST[:SEED]]`` grows evenly spaced lines rather than giving seed points: it is
 parsed by ``parse_even_spec`` and traced by ``flowkit.seeding.trace_spec``.
@@ -330,17 +331,25 @@ def _points_form(s: _Spec, field):
     return np.array([s.point(i) for i in range(len(s.parts))], dtype=np.float64)
 
 
-def _line_form(s: _Spec, field):
+def _line_args(s: _Spec) -> tuple:
     s.nparts(3)
-    return line(s.point(0), s.point(1), s.count(2))
+    return s.point(0), s.point(1), s.count(2)
 
 
-def _plane_form(s: _Spec, field):
+def _plane_args(s: _Spec) -> tuple:
     s.nparts(4)
     nuv = s.counts(3, 2, "nu,nv")
     if nuv is None:
         raise s.error(f"part 4 '{s.parts[3]}' must be nu,nv, 2 comma-separated positive integers")
-    return _named(s, plane, s.point(0), s.point(1), s.point(2), *nuv)
+    return s.point(0), s.point(1), s.point(2), *nuv
+
+
+def _line_form(s: _Spec, field):
+    return line(*_line_args(s))
+
+
+def _plane_form(s: _Spec, field):
+    return _named(s, plane, *_plane_args(s))
 
 
 def _box_form(s: _Spec, field):
@@ -454,6 +463,22 @@ def plane_spec(origin, u, v, nu: int, nv: int) -> str:
     """The spec of ``plane(origin, u, v, nu, nv)``."""
     return (f"plane:{_point_text(origin)}:{_point_text(u)}:{_point_text(v)}:"
             f"{_count(nu, 'plane: nu')},{_count(nv, 'plane: nv')}")
+
+
+def parse_rake_spec(spec: str) -> tuple[str, tuple] | None:
+    """The arguments of a ``line:`` or ``plane:`` spec, ("line", (p0, p1, n)) or ("plane",
+    (origin, u, v, nu, nv)), checked as ``parse_seed_spec`` checks them; None for other forms.
+    ``line(*args)`` / ``plane(*args)`` give the spec's points."""
+    spec = str(spec).strip()
+    kind, sep, rest = spec.partition(":")
+    parts = {"line": _line_args, "plane": _plane_args}.get(kind.lower()) if sep else None
+    if parts is None:
+        return None
+    s = _Spec(spec, kind.lower(), rest.split(":"))
+    args = parts(s)
+    if s.kind == "plane":
+        _named(s, plane, *args)  # u and v must span a plane
+    return s.kind, args
 
 
 def points_spec(values) -> str:

@@ -91,7 +91,7 @@ class LineRenderer:
 
     def __init__(self, lines: Lines, ctx: moderngl.Context | None = None,
                  tolerance: float | None = None, msaa: bool | None = None,
-                 strips: str = "vertex"):
+                 strips: str = "vertex", bounds=None):
         """``tolerance``: per frame, skip the vertices whose removal moves the drawn line by less
         than this many output pixels and its attributes by less than a visible step (see
         ``simplify``); 0 draws every vertex (nothing is recomputed when the camera moves).
@@ -101,7 +101,9 @@ class LineRenderer:
         analytic edge smoothing; on a GPU, every vertex and MSAA.
         ``strips``: the shader stage that builds the view-oriented strips, "vertex" (vertex
         pulling, the default: as fast or faster on llvmpipe) or "geometry" (a lines_adjacency geometry
-        shader); both draw the same strips with the same style code."""
+        shader); both draw the same strips with the same style code.
+        ``bounds``: the (3, 2) box cameras frame and clip to (default: the lines' own box); the
+        viewer gives the field's, so lines traced again from a moved rake keep the view."""
         self.strips = check_strip_stage(strips)
         self.ctx = ctx or default_context()
         software = is_software(self.ctx)
@@ -112,7 +114,7 @@ class LineRenderer:
         self.msaa = (not software) if msaa is None else bool(msaa)
         self.lines = lines
         self.tolerance = float(tolerance)
-        self.bounds = lines.bounds()
+        self.bounds = lines.bounds() if bounds is None else np.array(bounds, float).reshape(3, 2)
         self._starts, self._stops = runs(lines)
         if 2 * lines.n_points + len(self._starts) + 6 >= 2**31:
             raise ValueError(f"{lines.n_points} points: too many to draw in one call")

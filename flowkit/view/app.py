@@ -14,6 +14,11 @@ pinned (``orbit.pinned``), so orbiting, zooming and panning keep the scale.
 
 Style updates: a new style whose template flags equal the current ones only changes uniforms;
 other flags select (and, the first time, compile) another program.  ``updates`` counts both.
+
+Live seeding (``seeding``, a ``LiveSeeding``: a field, trace options, a rake): the rake is an
+overlay whose handles a left drag moves; when the rake has changed, the next frame traces its
+seeds again and draws the new lines (while dragging too, as long as the last re-trace and redraw
+took at most ``LIVE_SECONDS``; else on release).  Nothing is traced while the rake stays put.
 """
 
 from __future__ import annotations
@@ -44,12 +49,15 @@ from .outline import Outline
 from .overlay import OverlayLayer, axes_image, ring_image, text_image
 from .panel import PANEL_WIDTH, Panel, imgui_key
 from .probe import Picker, describe
+from .rake import Rake, drag_point, handle_at, project, rake_image
+from .seeding import LiveSeeding
 from .watch import FileWatch
 
 IDLE_POLL = 0.25  # s between style file polls while nothing happens
 WAKE_FRAMES = 3  # frames drawn after an event (ImGui settles hover and active states)
 MARGIN = 8  # px between overlays and the scene's edges
 LEGEND_TEXT_PX = 14  # the legend's text size (times the HiDPI scale), near the panel's
+LIVE_SECONDS = 0.1  # re-trace while dragging the rake when the last re-trace + redraw took <= this
 
 
 class ViewerError(RuntimeError):
@@ -110,7 +118,11 @@ class Viewer:
 
     def __init__(self, lines: Lines, style_path, *, size=(1280, 800), vsync: bool = True,
                  visible: bool = True, screenshot_dir=None, tolerance: float | None = None,
-                 title: str | None = None, units: dict[str, str] | None = None):
+                 title: str | None = None, units: dict[str, str] | None = None,
+                 camera: Camera | None = None, seeding: LiveSeeding | None = None):
+        """``camera``: the camera to open with and R returns to (default: the style's);
+        ``seeding``: live seeding from a rake (flowkit.view.seeding), ``lines`` being what is
+        shown until the rake first moves."""
         self.lines = lines
         self.units = dict(units or {})  # attribute -> units, "position" for x, y, z
         self.style_path = Path(style_path)
@@ -137,9 +149,13 @@ class Viewer:
         imgui.set_current_context(self._imgui)  # create_context only sets it when there is none
         imgui.get_io().set_ini_filename(None)  # no imgui.ini beside the user's files
         imgui.backends.opengl3_init("#version 330")
-        self.renderer = LineRenderer(lines, self.ctx, tolerance=tolerance)
+        self.seeding = seeding
+        self._tolerance = tolerance
+        # with a field: its box frames the view, so lines traced again keep the camera
+        self._bounds = None if seeding is None else np.asarray(seeding.bounds, float)
+        self.renderer = LineRenderer(lines, self.ctx, tolerance=tolerance, bounds=self._bounds)
         self.overlays = OverlayLayer(self.ctx)
-        self.outline_bounds = domain_bounds(lines)
+        self.outline_bounds = domain_bounds(lines) if seeding is None else self._bounds
         if self.outline_bounds is None:
             self.outline_bounds = self.renderer.bounds
         self.outline = Outline(self.ctx, self.outline_bounds)
@@ -150,7 +166,8 @@ class Viewer:
         self.style = self.file_style = style  # in effect / last good from the file
         self.source = text  # the file's text: save_style keeps its comments and layout
         self.flags = self._flags(style)
-        self._camera, self._fit = style.camera, style.camera  # fitted at the first frame
+        self.home_camera = camera  # R's camera (None: the style's)
+        self._camera, self._fit = style.camera, camera or style.camera  # fitted at first frame
         self.updates = {"uniforms": 0, "recompile": 0}
         self.last_update: str | None = None
         self.error: str | None = None  # shown in the panel until a good style replaces it
@@ -179,6 +196,14 @@ class Viewer:
         self._hover: tuple[float, float] | None = None  # scene pixels
         self._probe_key = None
         self._overlay_keys: dict[str, object] = {}
+        # live seeding: the rake, the rake the lines shown come from, the handle being dragged
+        self.rake: Rake | None = None if seeding is None else seeding.rake
+        self._traced_rake = self.rake
+        self._handle: str | None = None
+        self.show_rake = seeding is not None
+        self.reseed_time = self.trace_time = 0.0  # s: last re-trace + redraw, its trace
+        self.retraces = 0
+        self._lines_gen = 0  # counts set_lines (part of the scene's key)
         self._wake = WAKE_FRAMES
         self._last = time.perf_counter()
         self.panel = Panel(self)
@@ -377,8 +402,8 @@ class Viewer:
         self.wake()
 
     def reset_camera(self) -> None:
-        """The style's camera, fitted again (R)."""
-        self.fit_camera(self.style.camera)
+        """The camera the window opened with (default: the style's), fitted again (R)."""
+        self.fit_camera(self.home_camera or self.style.camera)
 
     def set_view(self, view: str) -> None:
         """Look along a named view ("+x", ..., "iso"; ``render.camera.VIEWS``) with the style's
@@ -388,8 +413,11 @@ class Viewer:
         self.message = f"view {view}"
 
     def on_drag(self, dx: float, dy: float, button: int = 0, mods: int = 0) -> None:
-        """Left drag orbits; right or middle drag (or shift + left) pans.  Pixels, y down."""
-        if button == glfw.MOUSE_BUTTON_LEFT and not mods & glfw.MOD_SHIFT:
+        """Left drag orbits (or moves the rake handle grabbed by ``grab``); right or middle
+        drag (or shift + left) pans.  Pixels, y down."""
+        if self._handle is not None:
+            self.drag_handle(dx, dy)
+        elif button == glfw.MOUSE_BUTTON_LEFT and not mods & glfw.MOD_SHIFT:
             self.camera = orbit.orbit(self.camera, dx, dy)
         else:
             self.camera = orbit.pan(self.camera, dx, dy, self.renderer.bounds, self.scene_size)
@@ -413,11 +441,18 @@ class Viewer:
         glfw.KEY_B: ("B", "outline"), glfw.KEY_L: ("L", "legend"),
         glfw.KEY_P: ("P", "probe on hover"),
         glfw.KEY_H: ("H", "hide/show the panel"), glfw.KEY_ESCAPE: ("Esc", "quit")}
+    # with live seeding
+    SEED_KEYS: ClassVar = {
+        glfw.KEY_EQUAL: ("+ / -", "one seed more / fewer per rake edge"),
+        glfw.KEY_T: ("T", "line / plane rake"), glfw.KEY_G: ("G", "rake shown"),
+        glfw.KEY_W: ("W", "save seeds")}
+    _COUNT_KEYS: ClassVar = {glfw.KEY_EQUAL: 1, glfw.KEY_KP_ADD: 1, glfw.KEY_MINUS: -1,
+                             glfw.KEY_KP_SUBTRACT: -1}
     _TOGGLES: ClassVar = {"axes": "show_axes", "outline": "show_outline", "legend": "show_legend",
-                          "probe": "probe_on_hover", "panel": "show_panel"}
+                          "probe": "probe_on_hover", "panel": "show_panel", "rake": "show_rake"}
     _TOGGLE_KEYS: ClassVar = {glfw.KEY_A: "axes", glfw.KEY_B: "outline", glfw.KEY_L: "legend",
                               glfw.KEY_P: "probe",
-                              glfw.KEY_H: "panel"}
+                              glfw.KEY_H: "panel", glfw.KEY_G: "rake"}
 
     def shown(self, what: str) -> bool:
         """Whether "axes", "outline", "legend", "probe" (on hover) or "panel" is on."""
@@ -427,6 +462,8 @@ class Viewer:
         setattr(self, self._TOGGLES[what], not self.shown(what))
         if what == "probe" and not self.probe_on_hover and not self.probe_pinned:
             self.probe = None
+        if what == "rake":
+            self._handle = None
         self.wake()
 
     def on_key(self, key: int, action: int = glfw.PRESS, mods: int = 0) -> None:
@@ -457,6 +494,111 @@ class Viewer:
             self.set_view(VIEWS[key - glfw.KEY_1])
         elif key in self._TOGGLE_KEYS:
             self.toggle(self._TOGGLE_KEYS[key])
+        elif key in self._COUNT_KEYS or key in (glfw.KEY_T, glfw.KEY_W):
+            if self.seeding is None:
+                self.message = ("no live seeding: open a scene (flowkit view --scene FILE) to "
+                                "seed from a rake")
+            elif key == glfw.KEY_T:
+                self.set_rake(self.rake.as_kind("plane" if self.rake.kind == "line" else "line",
+                                                self.seeding.decimals))
+            elif key == glfw.KEY_W:
+                self.save_seeds()
+            else:
+                self.set_rake(self.rake.more(self._COUNT_KEYS[key]))
+
+    # -- live seeding -----------------------------------------------------------------------------
+    def _setup(self):
+        """The camera's setup on the scene's viewport (what the scene is drawn with)."""
+        return self.camera.setup(self.renderer.bounds, *self.scene_size)
+
+    def handle_at(self, x: float, y: float) -> str | None:
+        """The rake handle at scene pixel (x, y) (within ``rake.GRAB_PX``), or None."""
+        if self.rake is None or not self.show_rake:
+            return None
+        return handle_at(self.rake, self._setup(), self.scene_size, x, y)
+
+    def handle_xy(self, name: str) -> tuple[float, float]:
+        """Scene pixel (x, y) of rake handle ``name``."""
+        x, y = project(self._setup(), self.scene_size, self.rake.handles()[name])[0][0]
+        return float(x), float(y)
+
+    def grab(self, x: float, y: float) -> str | None:
+        """Start dragging the rake handle at scene pixel (x, y) (a left press there); its name,
+        or None when there is none (the press then orbits)."""
+        self._handle = self.handle_at(x, y)
+        self.wake()
+        return self._handle
+
+    def drag_handle(self, dx: float, dy: float) -> None:
+        """Move the grabbed handle with the mouse (pixels, y down), parallel to the screen,
+        inside the field's box."""
+        to = drag_point(self._setup(), self.rake.handles()[self._handle], dx, dy)
+        self.set_rake(self.rake.moved(self._handle, to, self.seeding.bounds,
+                                      self.seeding.decimals))
+
+    def release(self) -> None:
+        """Let the handle go: the next frame traces the rake if it was not traced while
+        dragging."""
+        self._handle = None
+        self.wake()
+
+    def set_rake(self, rake: Rake) -> None:
+        """A new rake (seeds, shape or count): traced at the next frame (while a handle is
+        dragged, only when that keeps up, see ``LIVE_SECONDS``)."""
+        if rake != self.rake:
+            self.rake = rake
+            self.message = f"rake: {rake.n_seeds} seeds ({rake.spec()})"
+        self.wake()
+
+    def retrace(self) -> Lines:
+        """Trace the rake's seeds (``LiveSeeding.trace``: the scene's call and options) and
+        show the lines."""
+        t0 = time.perf_counter()
+        lines = self.seeding.trace(self.rake)
+        self.trace_time = time.perf_counter() - t0
+        self._traced_rake = self.rake
+        self.seeding.source = None
+        self.set_lines(lines)
+        self.retraces += 1
+        return lines
+
+    def set_lines(self, lines: Lines) -> None:
+        """Show ``lines`` (with the same attributes) instead: a new renderer and picker; the
+        camera, style and overlays stay."""
+        problem = unreadable(lines, self.style)
+        if problem is not None:
+            raise StyleError(problem)
+        old = self.renderer
+        self.renderer = LineRenderer(lines, self.ctx, tolerance=self._tolerance,
+                                     bounds=old.bounds)
+        old.release()
+        self.lines = lines
+        self.picker = Picker(lines.points)
+        self.probe, self.probe_pinned = None, False
+        self._resolved = (None, self.style)
+        self.flags = self._flags(self.style)  # linear attributes may differ
+        self._lines_gen += 1
+        self.invalidate()
+
+    def _update_seeding(self) -> bool:
+        """Trace the rake if it changed since its lines were traced (while dragging, only when
+        the last re-trace kept up); True when it did."""
+        if self.seeding is None or self.rake == self._traced_rake:
+            return False
+        if self._handle is not None and self.reseed_time > LIVE_SECONDS:
+            return False
+        self.retrace()
+        return True
+
+    def save_seeds(self, path=None) -> Path:
+        """Write the rake's seed spec (what ``flowkit trace --seeds`` and a scene's ``[seeds]
+        spec`` take) atomically to ``path`` (default ``seeding.save_to``, beside the scene),
+        and print where."""
+        path = self.seeding.save(self.rake, path)
+        spec = self.rake.spec()
+        print(f"flowkit view: saved seeds to {path}: {spec}", flush=True)
+        self.message = f"saved seeds to {path}"
+        return path
 
     # -- probe ------------------------------------------------------------------------------------
     def pick(self, x: float, y: float, wait: bool = True) -> int | None:
@@ -533,9 +675,13 @@ class Viewer:
         if action == glfw.PRESS and not io.want_capture_mouse and self._drag is None:
             self._drag = button
             self._press = self._cursor
+            if button == glfw.MOUSE_BUTTON_LEFT and self._cursor is not None:
+                self.grab(*self._scene_xy(*self._cursor))
         elif action == glfw.RELEASE and button == self._drag:
             self._drag = None
-            if button == glfw.MOUSE_BUTTON_LEFT and self._cursor == self._press and self._cursor:
+            if self._handle is not None:
+                self.release()
+            elif button == glfw.MOUSE_BUTTON_LEFT and self._cursor == self._press and self._cursor:
                 self.probe_at(*self._scene_xy(*self._cursor))  # a click pins (or clears) it
             self._hover = self._scene_xy(*self._cursor) if self._cursor else None
 
@@ -568,7 +714,7 @@ class Viewer:
     # -- frames -----------------------------------------------------------------------------------
     def _draw_scene(self) -> None:
         size = tuple(self.scene_size)
-        key = (id(self.style), self.camera, size, self.show_outline)
+        key = (id(self.style), self.camera, size, self.show_outline, self._lines_gen)
         if key == self._scene_key:
             return
         t0 = time.perf_counter()
@@ -610,6 +756,26 @@ class Viewer:
                       lambda: axes_image(view), lambda w, h: (MARGIN, sh - h - MARGIN))
         self._update_legend()
         self._update_probe(setup)
+        self._update_rake(setup)
+
+    def _update_rake(self, setup) -> None:
+        """The rake overlay, its grabbed handle (or the one under the cursor) highlighted."""
+        key = None
+        if self.rake is not None and self.show_rake:
+            active = self._handle
+            if active is None and self._hover is not None:
+                active = handle_at(self.rake, setup, self.scene_size, *self._hover)
+            key = (self.rake, active, setup.view.tobytes(), setup.proj.tobytes(),
+                   tuple(self.scene_size), self._pixel_scale)
+        if key == self._overlay_keys.get("rake"):
+            return
+        self._overlay_keys["rake"] = key
+        drawn = None if key is None else rake_image(self.rake, setup, self.scene_size, key[1],
+                                                    self._pixel_scale)
+        if drawn is None:
+            self.overlays.remove("rake")
+        else:
+            self.overlays.set("rake", *drawn)
 
     def _update_legend(self) -> None:
         """The renderer's legend of the style in effect, in the scene viewport where the style
@@ -694,7 +860,12 @@ class Viewer:
         x0 = min(round(self.panel_width), fw - 1) if self.show_panel else 0
         self.scene_origin, self.scene_size = x0, (fw - x0, fh)
         with self.ctx:
+            t_seed = time.perf_counter()
+            retraced = self._update_seeding()
             self._draw_scene()
+            if retraced:  # the new lines drawn, finished: what following the mouse costs
+                self.ctx.finish()
+                self.reseed_time = time.perf_counter() - t_seed
             self._update_overlays()
             composed = self.overlays.compose(self.renderer.output())
             screen = self.ctx.detect_framebuffer(0)  # the window's, at its current size

@@ -142,6 +142,7 @@ class Panel:
                             "Ctrl+S save style")
         imgui.pop_text_wrap_pos()
         self._view()
+        self._seeding()
         self._params()
         imgui.pop_item_width()
         imgui.end()
@@ -173,6 +174,40 @@ class Panel:
         self._settle("colour range")
         if imgui.button("data range"):
             v.set_color_range(None)
+
+    def _seeding(self) -> None:
+        """The rake of live seeding: its kind, seed counts, save seeds, the re-trace time."""
+        v = self.viewer
+        if v.seeding is None or not imgui.collapsing_header("seed rake",
+                                                            imgui.TreeNodeFlags_.default_open):
+            return
+        rake = v.rake
+        for i, kind in enumerate(("line", "plane")):
+            if i:
+                imgui.same_line()
+            if imgui.radio_button(kind, rake.kind == kind) and rake.kind != kind:
+                v.set_rake(rake.as_kind(kind, v.seeding.decimals))
+        imgui.same_line()
+        if imgui.checkbox("shown (G)", v.show_rake)[0]:
+            v.toggle("rake")
+        label = "seeds" if rake.kind == "line" else "seeds nu, nv"
+        widget = imgui.input_int if rake.kind == "line" else imgui.input_int2
+        changed, n = widget(label, rake.counts[0] if rake.kind == "line" else list(rake.counts))
+        if changed:
+            v.set_rake(rake.with_counts(*np.atleast_1d(n)))
+        if imgui.button("save seeds (W)"):
+            v.save_seeds()
+        imgui.push_text_wrap_pos(0.0)
+        if v.seeding.source is not None:
+            imgui.text_wrapped(f"lines from the scene's seeds ({v.seeding.source}); drag a rake "
+                               "handle to seed from the rake")
+        imgui.text_disabled(v.rake.spec())
+        if v.retraces:
+            imgui.text(f"{len(v.lines)} lines; re-trace {1e3 * v.trace_time:.0f} ms, with redraw "
+                       f"{1e3 * v.reseed_time:.0f} ms")
+        keys = ", ".join(f"{k} {what}" for k, what in v.SEED_KEYS.values())
+        imgui.text_disabled(f"left drag a handle: move it; {keys}")
+        imgui.pop_text_wrap_pos()
 
     def _merge(self, key) -> bool:
         """True when this change continues the drag of the same widget (one undo step)."""
