@@ -335,7 +335,6 @@ def _fc(px, py, pz, param, cf, coef, k, row):
     return sp
 
 
-_fc_call = helper(_fc.py_func)  # the same, called: off the per-step path (crossing tries)
 
 
 @inline
@@ -940,7 +939,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                     # times the time past the first face, bounds what the faces' kinks moved y1
                     # (the embedded estimate, blind to kinks, sees a fraction of it)
                     t_past = abs(hs) - t_exit
-                    _fc_call(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
+                    _fc(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
                     ek = 0.0
                     for a in range(3):
                         sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))

@@ -49,7 +49,6 @@ from .trace import trace
 NAME = "ros34pw2"
 _M = get_method(NAME)
 GAMMA, ALPHA, GAMMAS, B, BHAT = _M.gamma, _M.alpha, _M.gammas, _M.b, _M.bhat
-ORDER, ERR_ORDER = _M.order, _M.err_order
 _Q = 3  # Hermite dense output degree
 _OVERFLOW = 3  # line status: its output buffer filled; rerun with a larger one
 # a line's int row (schema.py): the kernel's leading columns, then its stiffness
