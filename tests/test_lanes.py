@@ -73,6 +73,49 @@ def test_bit_identical_to_scalar_kernel(name):
     assert (reasons == int(Reason.OUT_OF_DOMAIN)).sum() > 100  # boundary events handed back
 
 
+ADAPTIVE = {
+    "dopri5 time": {"method": "dopri5", "rtol": 1e-6, "max_time": 8.0, "max_length": 1e9},
+    "dopri5 loose, arc length": {"method": "dopri5", "rtol": 1e-3, "parameter": "arc_length",
+                                 "max_length": 10.0},
+    "bs23 both directions": {"method": "bs23", "rtol": 1e-5, "max_length": 6.0,
+                             "direction": "both"},
+    "cashkarp small buffer": {"method": "cashkarp", "rtol": 1e-7, "max_length": 20.0,
+                              "budget": 9},
+    "dop853 max_step": {"method": "dop853", "rtol": 1e-9, "max_step": 0.2, "max_length": 8.0},
+    "dopri5 max_steps": {"method": "dopri5", "rtol": 1e-8, "max_length": 500.0,
+                         "max_steps": 41},
+}
+
+
+@pytest.mark.parametrize("name", sorted(ADAPTIVE))
+def test_adaptive_bit_identical_to_scalar_kernel(name):
+    """Error-controlled steps in lock-step: per-lane step sizes, rejected steps redone while
+    the other lanes go on, the kernel's controller; the lines are the scalar kernel's."""
+    lines = _same(_abc(), _seeds(), cell_aware=False, **ADAPTIVE[name])
+    assert np.asarray(lines.line_data["n_rejected"]).sum() > 0  # rejections in lock-step too
+    reasons = np.asarray(lines.line_data["reason"])
+    assert (reasons == int(Reason.OUT_OF_DOMAIN)).sum() > 50  # boundary events handed back
+
+
+@pytest.mark.parametrize("method", ["dopri5", "dop853"])
+def test_adaptive_bit_identical_at_nan_and_stagnation(method):
+    lines = _same(_abc(True, True), _seeds(), method=method, rtol=1e-6, cell_aware=False,
+                  max_time=50.0, max_length=1e9)
+    reasons = set(np.asarray(lines.line_data["reason"]).tolist())
+    assert reasons >= {int(K.R_NAN), int(K.R_STAG)}
+
+
+def test_stiffness_test_in_lock_step():
+    """dopri5's stiffness test runs in the lanes as in the scalar kernel: the stiff field's
+    lines are flagged, with the same counts on every line."""
+    from flowkit.fields.analytic import LinearField
+
+    seeds = np.random.default_rng(3).uniform([-0.8, -0.8, 0.2], [0.8, 0.8, 8.0], (70, 3))
+    lines = _same(LinearField.stiff().to_field((4, 4, 11)), seeds, rtol=1e-6, atol=1e-6,
+                  max_time=1.0, cell_aware=False)
+    assert np.all(np.asarray(lines.line_data["stiff"]) == 1)
+
+
 @pytest.mark.parametrize("holes,zero,param", [(True, False, "time"), (False, True, "arc_length"),
                                               (False, True, "time")])
 def test_bit_identical_at_nan_and_stagnation(holes, zero, param):
@@ -106,11 +149,10 @@ def test_lockstep_takes_the_interior_steps():
           "parameter": "arc_length"}  # (in time, max_length is met on the dense output)
     L = _first_launch(f, seeds, **kw)
     g, m, si, sf, out_p, out_n = L.field, L.method, L.si, L.sf, L.out_p, L.out_n
-    assert lanes.eligible(g.period, g.inv, m.a, m.b, m.info, L.io)
+    assert lanes.eligible(g.period, g.inv, m.info, L.io)
     L.io[K.P_PASS] = K.PASS_SETUP  # start the lines, as lanes.advance does
     K.advance(L)
-    lanes.lockstep(L.active, L.dirs, g.gx, g.gy, g.gz, g.inv, g.vec.reshape(-1), g.vec.shape[1],
-                   g.vec.shape[2], m.c, m.a, m.info, L.fo, L.io, sf, si, out_p, L.out_par, out_n)
+    lanes.lockstep(*lanes.lockstep_args(L))
     steps = int(np.ceil(3.0 / 0.05))
     assert np.all(si[:, K.I_NACC] >= steps - 1)
     assert np.all(out_n == si[:, K.I_NACC] + 1)  # the seed and a vertex per step
@@ -173,13 +215,11 @@ def test_lockstep_is_vector_code():
     f = SolidBodyRotation().to_field(9)
     L = _first_launch(f, np.full((3, 3), 0.3), method="rk4", step=0.05, max_length=0.5,
                       cell_aware=False, parameter="arc_length")
-    g, m = L.field, L.method
     L.io[K.P_PASS] = K.PASS_SETUP
     K.advance(L)
     opts = {k: v for k, v in lanes.lockstep.targetoptions.items() if k != "nopython"}
     fresh = njit(**opts)(lanes.lockstep.py_func)  # its own options, not cached
-    fresh(L.active, L.dirs, g.gx, g.gy, g.gz, g.inv, g.vec.reshape(-1), g.vec.shape[1],
-          g.vec.shape[2], m.c, m.a, m.info, L.fo, L.io, L.sf, L.si, L.out_p, L.out_par, L.out_n)
+    fresh(*lanes.lockstep_args(L))
     asm = fresh.overloads[fresh.signatures[0]].library.get_asm_str()
     assert re.search(r"vsqrtpd\s+%[yz]mm", asm)  # the evaluations, four or eight lanes at once
     assert re.search(r"vgather[dq]pd", asm)  # the cell corners
@@ -195,12 +235,16 @@ def test_eligible_only_where_it_applies():
         g, m = L.field, L.method
         if last_row is not None:  # the f(y1) stage's weights, changed
             m.a[m.info[K.M_FSAL], :m.info[K.M_NERR]] = last_row
-        return lanes.eligible(g.period, g.inv, m.a, m.b, m.info, L.io)
+        return lanes.eligible(g.period, g.inv, m.info, L.io)
 
     assert ok()
-    assert not ok(last_row=[1 / 6, 1 / 3, 1 / 3, 1 / 6 + 1e-16])  # its point is not y1 then
+    # an f(y1) stage whose row differs from b: its point is summed from its own row, as the
+    # scalar kernel sums it
+    assert ok(last_row=[1 / 6, 1 / 3, 1 / 3, 1 / 6 + 1e-16])
     assert ok(method="euler")
-    assert not ok(method="dopri5", step=None)  # adaptive
+    assert ok(method="dopri5", step=None)  # adaptive: per-lane steps
+    assert ok(method="dop853", step=None)  # the most stages before f(y1)
+    assert ok(method="auto", step=None)  # with the stiffness test
     assert not ok(cell_aware=True)
     assert not ok(spacing=0.05)  # resampled output needs the dense output
     periodic = ABCFlow().to_field(16, bounds=[[0.0, 2 * np.pi]] * 3)

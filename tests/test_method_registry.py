@@ -112,13 +112,19 @@ def test_register_method_makes_it_a_name_everywhere(monkeypatch):
 def test_capabilities_replace_names():
     get = M.get_method
     assert get("dopri5").stiffness_stage == 5 and get("cashkarp").stiffness_stage is None
-    assert [n for n in M.REGISTRY if get(n).lockstep] == ["rk4", "euler"]
+    assert [n for n in M.REGISTRY if not get(n).lockstep] == ["ros34pw2"]
     assert get("ros34pw2").backends == ("numba",) and get("auto").backends == ("numba", "opencl")
     assert get("auto").explicit is get("dopri5") and get("auto").retrace is get("ros34pw2")
     assert get("ros34pw2").load_driver().__name__ == "run_tasks"
-    # a fixed-step user tableau of few stages runs lock-step; Heun–Euler (adaptive) does not
+    # user tableaux run lock-step, fixed-step or adaptive, up to the stages the lanes hold
     heun = Method.from_butcher("heun", HEUN_C, HEUN_A, HEUN_B, order=2)
-    assert heun.lockstep and not heun_euler().lockstep
+    assert heun.lockstep and heun_euler().lockstep
+    s = M.LOCKSTEP_STAGES
+    c = np.linspace(0.0, 1.0, s + 1)
+    a = np.zeros((s + 1, s + 1))
+    a[1:, 0] = c[1:]  # (every stage from the first: explicit, rows summing to c)
+    big = Method.from_butcher("big", c, a, np.full(s + 1, 1 / (s + 1)), order=1)
+    assert big.n_stages > s and not big.lockstep
     # messages list the registry
     with pytest.raises(ValueError, match="choose one of: dopri5, .*, ros34pw2, auto"):
         M.get_method("rk99")

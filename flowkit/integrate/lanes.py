@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..jit import inline
-from .kernel import R_MAXLEN, R_MAXTIME, _prefetch, _put
+from .kernel import R_MAXLEN, R_MAXTIME, _next_step, _prefetch, _put, _retry
 from .kernel import advance as advance_one_by_one
 from .methods import LOCKSTEP_STAGES as SMAX  # stages of the eligible methods
 from .methods import lockstep_tableau
@@ -45,10 +45,22 @@ from .schema import (
     I_NREJ,
     I_REASON,
     I_STATUS,
+    I_STIFF,
+    M_ADAPTIVE,
     M_FSAL,
+    M_HASE2,
+    M_KEXP,
+    M_NERR,
+    O_ATOL,
+    O_BETA,
+    O_FACMAX,
+    O_FACMIN,
     O_HMAX,
+    O_HMIN,
     O_MAXLEN,
     O_MAXTIME,
+    O_RTOL,
+    O_SAFETY,
     O_STAG,
     P_AWARE,
     P_EMIT,
@@ -61,23 +73,24 @@ from .schema import (
     PASS_SETUP,
     RUNNING,
     S_DEP,
+    S_ERRP,
     S_H,
     S_K0,
     S_TAU,
     S_Y,
 )
+from .stiffness import hlambda, stiff_update
 
-W = 32  # lines per group: enough cache misses in flight to cover the memory latency
+W = 32  # lanes per group: enough cache misses in flight to cover the memory latency
+CHUNK = 4 * W  # lines per group, taken in turn by its lanes
 
 
-def eligible(period, inv, ma, mb, mi, io) -> bool:
-    """True where the lock-step path applies: a method the registry calls lock-step
-    (``methods.lockstep_tableau``: fixed step, at most SMAX stages, its f(y1) stage at y1),
-    plain stepping, a vertex per step, no stiffness test, every axis uniform and bounded.  Plain
-    Python: it runs once a launch, and ``advance`` compiles the lock-step only for launches that
-    pass."""
-    if not lockstep_tableau(ma, mb, mi) or io[P_AWARE] != 0 or io[P_EMIT] != EMIT_STEPS \
-            or io[P_STIFF] >= 0:
+def eligible(period, inv, mi, io) -> bool:
+    """True where the lock-step path applies: a method whose stages fit (``methods.
+    lockstep_tableau``), plain stepping, a vertex per step, every axis uniform and bounded.
+    Plain Python: it runs once a launch, and ``advance`` compiles the lock-step only for
+    launches that pass."""
+    if not lockstep_tableau(mi) or io[P_AWARE] != 0 or io[P_EMIT] != EMIT_STEPS:
         return False
     return bool(np.all(period == 0.0) and np.all(inv > 0.0))
 
@@ -201,29 +214,99 @@ def _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb):
             _prefetch(flat, b + di + dj + 5)
 
 
+@inline
+def _dot(g, n, coef, row, k, a, out):
+    """out[g, w] = Σ_m<n coef[row, m] k[g, m, a, w], summed in the scalar kernel's order."""
+    for w in range(W):
+        out[g, w] = 0.0
+    for m in range(n):
+        c = coef[row, m]
+        for w in range(W):
+            out[g, w] += c * k[g, m, a, w]
+
+
+@inline
+def _error(g, n_err, mw, has_e2, fo, y, y1, hs, k, e5, e3, tmp, err, fin):
+    """``kernel._step_end``'s error norm for every lane of group g into err[g]; fin[g, w] keeps
+    1 only where y1 and the norm are finite and the squares neither over- nor underflowed
+    (there the scalar kernel rescales: the lane hands that step back)."""
+    for w in range(W):
+        e5[g, w] = 0.0
+        e3[g, w] = 0.0
+    for a in range(3):
+        _dot(g, n_err, mw, 1, k, a, tmp)
+        for w in range(W):
+            sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[g, a, w]), abs(y1[g, a, w]))
+            e5[g, w] += (tmp[g, w] / sc) ** 2
+        if has_e2 != 0:
+            _dot(g, n_err, mw, 2, k, a, tmp)
+            for w in range(W):
+                sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[g, a, w]), abs(y1[g, a, w]))
+                e3[g, w] += (tmp[g, w] / sc) ** 2
+    for w in range(W):
+        x5, x3 = e5[g, w], e3[g, w]
+        if has_e2 != 0:
+            den = x5 + 0.01 * x3
+            e = 0.0 if den == 0.0 else abs(hs[g, w]) * x5 / math.sqrt(den * 3.0)
+        else:
+            e = abs(hs[g, w]) * math.sqrt(x5 / 3.0)
+        err[g, w] = e
+        fin[g, w] &= int(x5 + x3 > 1e-250) & int(x5 + x3 < 1e250) & int(math.isfinite(e))
+
+
+@inline
+def _hand_back(g, w, l, r_ind, y, tau, h, errp, k, n_acc, n_rej, lrej, stiff, moved, done, sf,
+               si):
+    """Lane w's line l back into its state rows, for ``kernel._advance_lines`` to continue
+    (and DONE with reason r_ind where its last step met the parameter's limit)."""
+    if moved[g, w] != 0:
+        for a in range(3):
+            sf[l, S_Y + a] = y[g, a, w]
+        sf[l, S_DEP], sf[l, S_TAU], sf[l, S_H] = y[g, 3, w], tau[g, w], h[g, w]
+        sf[l, S_ERRP] = errp[g, w]
+        for a in range(4):
+            sf[l, S_K0 + a] = k[g, 0, a, w]
+        si[l, I_NACC], si[l, I_NREJ], si[l, I_LASTREJ] = n_acc[g, w], n_rej[g, w], lrej[g, w]
+        si[l, I_STIFF] = stiff[g, w]
+    if done[g, w] != 0:
+        si[l, I_STATUS], si[l, I_REASON] = DONE, r_ind
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
-def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mi, fo, io, sf, si,
+def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io, sf, si,
              out_p, out_par, out_n):
     """Advance the started lines ``active`` in groups of W as far as the lock-step goes; their
-    state goes back into ``sf``/``si`` for ``kernel._advance_lines`` to continue.
+    state goes back into ``sf``/``si`` for ``kernel._advance_lines`` to continue.  ``mw``: the
+    method's b, e and e2 as rows (``lockstep_args``).
 
     Every array the parallel loop touches is made before it and indexed by the group, none a
     view of another, and ``flat`` is the only view of the field: numba then marks them as not
     aliasing (it does so only when its alias analysis of the loop finds nothing), which LLVM's
     vectorizer needs for the gathers of ``_evaluate``."""
     B = out_p.shape[1]
-    fs = mi[M_FSAL]  # the f(y1) stage; y1 takes the stages before it (eligible: n_err == fs)
-    param, max_steps = io[P_PARAM], io[P_MAXSTEPS]
-    hmax, stag = fo[O_HMAX], fo[O_STAG]
+    n_err, fs = mi[M_NERR], mi[M_FSAL]  # y1 takes n_err stages; stage fs is f(y1)
+    adaptive, has_e2 = mi[M_ADAPTIVE], mi[M_HASE2]
+    # stage fs at y1 itself (rk4, euler: its row of a is b): y1 summed once, before it
+    y1_first = 1 if n_err == fs else 0
+    for m in range(n_err):
+        if ma[fs, m] != mw[0, m]:
+            y1_first = 0
+    param, max_steps, st_stiff = io[P_PARAM], io[P_MAXSTEPS], io[P_STIFF]
+    hmin, hmax, stag = fo[O_HMIN], fo[O_HMAX], fo[O_STAG]
+    safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
+    expo1 = 1.0 / mi[M_KEXP] - 0.75 * beta
     lim_ind = fo[O_MAXTIME] if param == 0 else fo[O_MAXLEN]
     lim_dep = fo[O_MAXLEN] if param == 0 else fo[O_MAXTIME]
     dlo = np.array([gx[0], gy[0], gz[0]])
     dhi = np.array([gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]])
-    G = (active.size + W - 1) // W
+    G = (active.size + CHUNK - 1) // CHUNK
     # every lane's state; a stopped lane keeps being computed (its values unused), so zeros
     y, yt, y1 = np.zeros((G, 4, W)), np.zeros((G, 3, W)), np.zeros((G, 4, W))
+    ys, stiff = np.zeros((G, 3, W)), np.zeros((G, W), np.int64)  # the stiffness test's
     k = np.zeros((G, SMAX, 4, W))
     tau, h, d = np.zeros((G, W)), np.zeros((G, W)), np.ones((G, W))
+    errp, errpb, err = np.zeros((G, W)), np.zeros((G, W)), np.zeros((G, W))
+    e5, e3, tmp = np.zeros((G, W)), np.zeros((G, W)), np.zeros((G, W))
     # 1 / width of every cell, as kernel._relocate divides (a gather instead of a division)
     rx, ry, rz = 1.0 / (gx[1:] - gx[:-1]), 1.0 / (gy[1:] - gy[:-1]), 1.0 / (gz[1:] - gz[:-1])
     n_acc, n_rej = np.zeros((G, W), np.int64), np.zeros((G, W), np.int64)
@@ -231,30 +314,48 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mi, fo, io, sf
     # a possible alias, and then marks no array of the loop as not aliasing
     live, moved, ok = np.zeros((G, W), np.int8), np.zeros((G, W), np.int8), np.ones((G, W), np.int8)
     emit, hit, done = np.zeros((G, W), np.int8), np.zeros((G, W), np.int8), np.zeros((G, W), np.int8)
-    hs = np.zeros((G, W))  # the step taken: h, or clipped at the parameter's limit
+    lrej, act = np.zeros((G, W), np.int8), np.zeros((G, W), np.int8)
+    hs, hn = np.zeros((G, W)), np.zeros((G, W))  # the step taken (h, or clipped); the next
     r_ind = R_MAXTIME if param == 0 else R_MAXLEN
     pb = np.zeros((G, W), np.int64)  # prefetched cells
+    slot = np.zeros((G, W), np.int64)  # the line in each lane (its slot in active), -1: none
     n_act = active.size
     for g in prange(G):
-        nl = min(W, n_act - g * W)
-        for w in range(nl):
-            l = active[g * W + w]
-            if si[l, I_STATUS] == RUNNING:
-                live[g, w] = 1
-                for a in range(3):
-                    y[g, a, w] = sf[l, S_Y + a]
-                y[g, 3, w] = sf[l, S_DEP]
-                tau[g, w], h[g, w], d[g, w] = sf[l, S_TAU], sf[l, S_H], dirs[l]
-                for a in range(4):
-                    k[g, 0, a, w] = sf[l, S_K0 + a]
-                n_acc[g, w], n_rej[g, w] = si[l, I_NACC], si[l, I_NREJ]
+        nxt, end = g * CHUNK, min((g + 1) * CHUNK, n_act)  # the group's lines, in turn
+        for w in range(W):
+            slot[g, w] = -1
         while True:
+            # a lane whose line stopped hands it back and takes the group's next running line:
+            # lines of different lengths (adaptive steps) keep the lanes busy
+            for w in range(W):
+                if live[g, w] != 0:
+                    continue
+                if slot[g, w] >= 0:
+                    _hand_back(g, w, active[slot[g, w]], r_ind, y, tau, h, errp, k, n_acc,
+                               n_rej, lrej, stiff, moved, done, sf, si)
+                    slot[g, w] = -1
+                while nxt < end and slot[g, w] < 0:
+                    l = active[nxt]
+                    if si[l, I_STATUS] == RUNNING:
+                        slot[g, w] = nxt
+                        live[g, w], moved[g, w], done[g, w] = 1, 0, 0
+                        for a in range(3):
+                            y[g, a, w] = sf[l, S_Y + a]
+                        y[g, 3, w] = sf[l, S_DEP]
+                        tau[g, w], h[g, w], d[g, w] = sf[l, S_TAU], sf[l, S_H], dirs[l]
+                        errp[g, w] = sf[l, S_ERRP]
+                        errpb[g, w] = errp[g, w] ** beta  # as kernel._load_state
+                        for a in range(4):
+                            k[g, 0, a, w] = sf[l, S_K0 + a]
+                        n_acc[g, w], n_rej[g, w] = si[l, I_NACC], si[l, I_NREJ]
+                        lrej[g, w], stiff[g, w] = si[l, I_LASTREJ], si[l, I_STIFF]
+                    nxt += 1
             # the checks at the top of the scalar kernel's loop: a lane meeting any of them stops
             n_live = 0
             for w in range(W):  # branch-free: vector code
-                slot = min(g * W + w, n_act - 1)  # (lanes past the last line read a real slot)
+                sl = max(slot[g, w], 0)  # (an empty lane reads a real slot)
                 speed = k[g, 0, 3, w] if param == 0 else 1.0 / k[g, 0, 3, w]
-                stop = (int(out_n[slot] >= B) | int(not (speed >= stag)) | int(speed == 0.0)
+                stop = (int(out_n[sl] >= B) | int(not (speed >= stag)) | int(speed == 0.0)
                         | int(n_acc[g, w] + n_rej[g, w] >= max_steps))
                 for a in range(3):
                     mv = d[g, w] * k[g, 0, a, w]
@@ -270,73 +371,112 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mi, fo, io, sf
                 n_live += lv
                 ok[g, w] = 1
             if n_live == 0:
-                break
-            # the stage points, a prefetch of their cells, then the evaluations; the last stage
-            # (f(y1), eligible says) is at y1 itself
+                if nxt >= end:
+                    break
+                continue
+            # the stage points, a prefetch of their cells, then the evaluations, up to f(y1)
             for st in range(1, fs + 1):
-                if st < fs:
-                    _sums(g, st, ma, st, y, hs, k, yt, 3)
-                else:
-                    _sums(g, st, ma, st, y, hs, k, y1, 4)
+                if st == fs and y1_first != 0:
+                    _sums(g, n_err, mw, 0, y, hs, k, y1, 4)
                     for a in range(3):
                         for w in range(W):
                             yt[g, a, w] = y1[g, a, w]
+                else:
+                    _sums(g, st, ma, st, y, hs, k, yt, 3)
+                if st == st_stiff:
+                    for a in range(3):
+                        for w in range(W):
+                            ys[g, a, w] = yt[g, a, w]
                 # the scalar kernel's rule: a stage at the c of the one before meets its cells
                 if mc[st] != mc[st - 1]:
                     _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb)
                 _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param)
-            # commit where the scalar kernel would take the step with no event (branch-free:
-            # vector code), then emit the committed vertices
-            for w in range(W):
-                good = (live[g, w] & ok[g, w] & int(abs(y1[g, 3, w]) < lim_dep)
-                        & int(math.isfinite(k[g, fs, 0, w] + k[g, fs, 1, w] + k[g, fs, 2, w]
-                                            + k[g, fs, 3, w])))
+            if y1_first == 0:
+                _sums(g, n_err, mw, 0, y, hs, k, y1, 4)
+            # act: 1 take the step (no event in it), 2 reject it (error above the tolerance),
+            # 0 stop the lane before it (the scalar kernel takes it from there)
+            for w in range(W):  # branch-free: vector code
+                f1 = live[g, w] & ok[g, w]
                 for a in range(4):
-                    good &= int(math.isfinite(y1[g, a, w]))
+                    f1 &= int(math.isfinite(y1[g, a, w]))
+                act[g, w] = f1
+            if adaptive != 0:
+                _error(g, n_err, mw, has_e2, fo, y, y1, hs, k, e5, e3, tmp, err, act)
+            for w in range(W):
+                good = int(abs(y1[g, 3, w]) < lim_dep) & int(math.isfinite(
+                    k[g, fs, 0, w] + k[g, fs, 1, w] + k[g, fs, 2, w] + k[g, fs, 3, w]))
                 for a in range(3):
                     good &= int(dlo[a] <= y1[g, a, w]) & int(y1[g, a, w] <= dhi[a])
+                big = adaptive & int(err[g, w] > 1.0)
+                act[g, w] = act[g, w] * (2 * big + (1 - big) * good)
+            # the step size control (a loop of scalar code: its powers), kernel's controller
+            for w in range(W):
+                if act[g, w] == 2:
+                    hn[g, w], why = _retry(hs[g, w], err[g, w], 0, hmin, safety, facmin, expo1)
+                    if why >= 0:
+                        act[g, w] = 0  # below the minimum step: the scalar kernel ends the line
+                elif act[g, w] == 1:
+                    if st_stiff >= 0:  # Hairer & Wanner's test (stiffness.dp5_hlambda's sums)
+                        num = 0.0
+                        den = 0.0
+                        for a in range(3):
+                            num += (k[g, 6, a, w] - k[g, 5, a, w]) ** 2
+                            den += (y1[g, a, w] - ys[g, a, w]) ** 2
+                        stiff[g, w] = stiff_update(stiff[g, w], hlambda(hs[g, w], num, den))
+                    hnext = h[g, w]
+                    if adaptive != 0:
+                        hnext, errp[g, w], errpb[g, w] = _next_step(
+                            err[g, w], errp[g, w], errpb[g, w], hs[g, w], h[g, w], lrej[g, w],
+                            safety, facmin, facmax, beta, expo1)
+                    hn[g, w] = d[g, w] * min(abs(hnext), hmax)
+            # commit (branch-free: vector code), then emit the committed vertices
+            for w in range(W):
+                a_w = act[g, w]
+                good, rej = int(a_w == 1), int(a_w == 2)
                 hsw, tau0, last = hs[g, w], tau[g, w], hit[g, w]
                 tau1 = d[g, w] * lim_ind if last != 0 else tau0 + hsw
                 for a in range(4):
                     y[g, a, w] = y1[g, a, w] if good != 0 else y[g, a, w]
                     k[g, 0, a, w] = k[g, fs, a, w] if good != 0 else k[g, 0, a, w]
                 tau[g, w] = tau1 if good != 0 else tau0
-                h[g, w] = d[g, w] * min(abs(h[g, w]), hmax) if good != 0 else h[g, w]
+                h[g, w] = hn[g, w] if a_w != 0 else h[g, w]
                 n_acc[g, w] += good
-                moved[g, w] |= good
+                n_rej[g, w] += rej
+                lrej[g, w] = rej if a_w != 0 else lrej[g, w]
+                moved[g, w] |= good | rej
                 done[g, w] |= good & last  # the limit met: reason r_ind, as the scalar kernel
-                live[g, w] = good & (1 - last)
+                live[g, w] = (good & (1 - last)) | rej
                 emit[g, w] = good & (int(hsw != 0.0) | int(tau0 != tau1))
             for w in range(W):
                 if emit[g, w] != 0:
                     t_out = tau[g, w] if param == 0 else y[g, 3, w]
                     s_out = y[g, 3, w] if param == 0 else tau[g, w]
-                    _put(out_p, out_par, out_n, g * W + w, y[g, 0, w], y[g, 1, w], y[g, 2, w],
+                    _put(out_p, out_par, out_n, slot[g, w], y[g, 0, w], y[g, 1, w], y[g, 2, w],
                          t_out, s_out)
-        for w in range(nl):  # hand the lines back
-            l = active[g * W + w]
-            if moved[g, w] != 0:
-                for a in range(3):
-                    sf[l, S_Y + a] = y[g, a, w]
-                sf[l, S_DEP], sf[l, S_TAU], sf[l, S_H] = y[g, 3, w], tau[g, w], h[g, w]
-                for a in range(4):
-                    sf[l, S_K0 + a] = k[g, 0, a, w]
-                si[l, I_NACC], si[l, I_NREJ], si[l, I_LASTREJ] = n_acc[g, w], n_rej[g, w], 0
-            if done[g, w] != 0:
-                si[l, I_STATUS], si[l, I_REASON] = DONE, r_ind
+        for w in range(W):  # hand the last lines back
+            if slot[g, w] >= 0:
+                _hand_back(g, w, active[slot[g, w]], r_ind, y, tau, h, errp, k, n_acc, n_rej,
+                           lrej, stiff, moved, done, sf, si)
+
+
+def lockstep_args(launch):
+    """``lockstep``'s arguments from a launch (the method's b, e, e2 stacked into rows)."""
+    L, f, m = launch, launch.field, launch.method
+    mw = np.ascontiguousarray(np.stack([m.b, m.e, m.e2]))
+    return (L.active, L.dirs, f.gx, f.gy, f.gz, f.inv, f.vec.reshape(-1), f.vec.shape[1],
+            f.vec.shape[2], m.c, m.a, mw, m.info, L.fo, L.io, L.sf, L.si, L.out_p, L.out_par,
+            L.out_n)
 
 
 def advance(launch):
     """``kernel.advance``, with lines in lock-step where ``eligible`` (same results).  A Python
     function, not a compiled one: a compiled dispatcher would compile the lock-step (a third of
-    the kernels' compile time) for every trace, where only fixed-step plain traces run it."""
+    the kernels' compile time) for every trace, where only plain (not cell-aware) traces run it."""
     L, f, m, io = launch, launch.field, launch.method, launch.io
-    if eligible(f.period, f.inv, m.a, m.b, m.info, io):
+    if eligible(f.period, f.inv, m.info, io):
         io[P_PASS] = PASS_SETUP
         advance_one_by_one(L)
-        lockstep(L.active, L.dirs, f.gx, f.gy, f.gz, f.inv, f.vec.reshape(-1), f.vec.shape[1],
-                 f.vec.shape[2], m.c, m.a, m.info, L.fo, io, L.sf, L.si, L.out_p, L.out_par,
-                 L.out_n)
+        lockstep(*lockstep_args(L))
         io[P_PASS] = PASS_FINISH
     try:
         advance_one_by_one(L)

@@ -47,7 +47,7 @@ from . import order_conditions as oc
 from . import schema
 
 BACKENDS = ("numba", "opencl")
-LOCKSTEP_STAGES = 5  # stages the lock-step path holds (rk4 and euler with their f(y1) stage)
+LOCKSTEP_STAGES = 13  # stages the lock-step path holds, up to f(y1) (dop853 has the most)
 # the kernels' stiffness test reads these two stages (``stiffness.dp5_hlambda``)
 STIFF_PAIR = (5, 6)
 
@@ -119,8 +119,8 @@ class Method:
 
     @property
     def lockstep(self) -> bool:
-        """The lock-step path (``lanes.py``) can run it on fixed-step plain traces."""
-        return lockstep_tableau(self.a, self.b, self.kernel_arrays()[-1])
+        """The lock-step path (``lanes.py``) can run it on plain (not cell-aware) traces."""
+        return lockstep_tableau(self.kernel_arrays()[-1])
 
     @property
     def n_stages(self) -> int:
@@ -319,13 +319,16 @@ class StiffSwitch:
 
     kind = "switch"
     adaptive = True
-    lockstep = False
     resamples = False  # the retraced lines have vertices at their steps
     driver = None
 
     @property
     def explicit(self) -> Method:
         return get_method(self.first)
+
+    @property
+    def lockstep(self) -> bool:
+        return self.explicit.lockstep  # its first pass is the explicit method's
 
     @property
     def retrace(self):
@@ -366,14 +369,11 @@ def _conditions(name: str, what: str, failures: list[str]) -> None:
         raise MethodError(f"method {name}: {what} miss the order condition {failures[0]}{more}")
 
 
-def lockstep_tableau(a, b, ints) -> bool:
-    """The method part of ``lanes.eligible``: a fixed-step method of at most LOCKSTEP_STAGES
-    stages whose f(y1) stage follows the error stages with y1's own weights (so that its stage
-    point is y1)."""
-    if ints[schema.M_ADAPTIVE] != 0 or ints[schema.M_STAGES] > LOCKSTEP_STAGES:
-        return False
-    n_err, fs = int(ints[schema.M_NERR]), int(ints[schema.M_FSAL])
-    return fs == n_err and bool(np.all(a[fs, :n_err] == b[:n_err]))
+def lockstep_tableau(ints) -> bool:
+    """The method part of ``lanes.eligible``: an explicit method whose stages up to f(y1) fit in
+    the LOCKSTEP_STAGES the lock-step holds (the stages after it feed only the dense output,
+    which the lock-step leaves to the scalar kernel)."""
+    return int(ints[schema.M_FSAL]) + 1 <= LOCKSTEP_STAGES
 
 
 REGISTRY: dict = {}  # every entry by name, in registration order
@@ -434,7 +434,7 @@ def describe(m) -> str:
     """One line: the description and the capabilities (for option docs and ``--help``)."""
     caps = ["adaptive" if m.adaptive else "fixed step", "+".join(m.backends)]
     if m.lockstep:
-        caps.append("lock-step")
+        caps.append("lanes")  # (argparse would break the line at a hyphen)
     if m.stiffness_stage is not None:
         caps.append("flags stiff lines")
     if not m.resamples:

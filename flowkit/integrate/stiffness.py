@@ -55,6 +55,13 @@ def dp5_hlambda(h, k, ys, y1):
     for a in range(3):
         num += (k[6, a] - k[5, a]) ** 2
         den += (y1[a] - ys[a]) ** 2
+    return hlambda(h, num, den)
+
+
+@njit(cache=True)
+def hlambda(h, num, den):
+    """|hλ| = h sqrt(num / den) from the squared norms of the stage difference (num) and of
+    the points' difference (den); the lock-step sums them itself (lanes.py)."""
     if den <= 0.0 or not math.isfinite(num):
         return 0.0
     return abs(h) * math.sqrt(num / den)
