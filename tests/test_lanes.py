@@ -97,6 +97,26 @@ def test_adaptive_bit_identical_to_scalar_kernel(name):
     assert (reasons == int(Reason.OUT_OF_DOMAIN)).sum() > 50  # boundary events handed back
 
 
+def _stretched(holes=False):
+    """ABC on a rectilinear grid, cells growing 4:1 along x and unevenly along y."""
+    x = 6.0 * np.linspace(0.0, 1.0, 40) ** 1.6
+    y = np.cumsum(np.r_[0.0, np.random.default_rng(4).uniform(0.1, 0.3, 30)])
+    f = ABCFlow().to_field(grid=Grid(x, y * 6.0 / y[-1], np.linspace(0.0, 6.0, 25)))
+    v = f.vector.copy()
+    if holes:
+        v[20:23, 10:14, 5:15] = np.nan
+    return Field(f.grid, v)
+
+
+@pytest.mark.parametrize("method,holes", [("dopri5", False), ("rk4", True), ("dop853", True)])
+def test_rectilinear_axes_bit_identical(method, holes):
+    kw = {"step": 0.07} if method == "rk4" else {"rtol": 1e-7}
+    lines = _same(_stretched(holes), _seeds(), method=method, cell_aware=False,
+                  max_length=12.0, **kw)
+    reasons = set(np.asarray(lines.line_data["reason"]).tolist())
+    assert int(Reason.OUT_OF_DOMAIN) in reasons and (not holes or int(K.R_NAN) in reasons)
+
+
 @pytest.mark.parametrize("method", ["dopri5", "dop853"])
 def test_adaptive_bit_identical_at_nan_and_stagnation(method):
     lines = _same(_abc(True, True), _seeds(), method=method, rtol=1e-6, cell_aware=False,
@@ -174,7 +194,7 @@ def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 
 
 @njit
 def _axis_cell(c, inv, x):
-    return lanes._axis_cell(c, inv, x)
+    return lanes._uniform_cell(c, inv, x)
 
 
 def test_kernel_locates_a_point_on_a_face_afresh():
@@ -250,4 +270,4 @@ def test_eligible_only_where_it_applies():
     periodic = ABCFlow().to_field(16, bounds=[[0.0, 2 * np.pi]] * 3)
     assert not ok(periodic, max_length=1.0)
     rect = Grid(np.r_[0.0, 0.5, 2.0, 6.0], np.linspace(0, 6, 7), np.linspace(0, 6, 7))
-    assert not ok(ABCFlow().to_field(grid=rect))
+    assert ok(ABCFlow().to_field(grid=rect))  # bisection on the non-uniform axis

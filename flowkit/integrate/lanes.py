@@ -87,27 +87,69 @@ CHUNK = 4 * W  # lines per group, taken in turn by its lanes
 
 def eligible(period, inv, mi, io) -> bool:
     """True where the lock-step path applies: a method whose stages fit (``methods.
-    lockstep_tableau``), plain stepping, a vertex per step, every axis uniform and bounded.
+    lockstep_tableau``), plain stepping, a vertex per step, every axis bounded.
     Plain Python: it runs once a launch, and ``advance`` compiles the lock-step only for
     launches that pass."""
     if not lockstep_tableau(mi) or io[P_AWARE] != 0 or io[P_EMIT] != EMIT_STEPS:
         return False
-    return bool(np.all(period == 0.0) and np.all(inv > 0.0))
+    return bool(np.all(period == 0.0))
 
 
 @inline
-def _axis_cell(c, inv, x):
+def _clamp(c, x):
+    # not max/min: a NaN coordinate must become c[0], a valid index (the lane's step then fails)
+    n = c.size
+    xc = x if x >= c[0] else c[0]  # noqa: FURB136
+    return xc if xc <= c[n - 1] else c[n - 1]  # noqa: FURB136
+
+
+@inline
+def _uniform_cell(c, inv, x):
     """Cell of x on a uniform bounded axis, as ``kernel._relocate`` finds it (clamped to the
     end cells), without branches: the lane loops that call it stay vector code."""
     n = c.size
-    # not max/min: a NaN coordinate must become c[0], a valid index (the lane's step then fails)
-    xc = x if x >= c[0] else c[0]  # noqa: FURB136
-    xc = xc if xc <= c[n - 1] else c[n - 1]  # noqa: FURB136
+    xc = _clamp(c, x)
     i = min(max(int((xc - c[0]) * inv), 0), n - 2)
     # rounding of (x - c0) * inv may land one cell off
     dn = xc < c[i]
     up = (xc > c[i + 1]) & (i < n - 2) & (xc >= c[i])
     return i - dn + up
+
+
+@inline
+def _bisect_cell(c, nb, x):
+    """Cell of x on a non-uniform bounded axis: ``interp.locate_axis``'s bisection for the first
+    node above x, as a fixed nb rounds (enough for the axis) of selects instead of branches."""
+    n = c.size
+    xc = _clamp(c, x)
+    lo, hi = 0, n
+    for _ in range(nb):
+        mid = (lo + hi) >> 1
+        below = xc < c[min(mid, n - 1)]
+        run = lo < hi
+        hi = mid if run & below else hi
+        lo = mid + 1 if run & (not below) else lo
+    return min(max(lo - 1, 0), n - 2)
+
+
+@inline
+def _rounds(n):
+    """Bisection rounds that find the first node above x among n nodes: r with 2^r > n."""
+    r = 1
+    while (1 << r) <= n:
+        r += 1
+    return r
+
+
+@inline
+def _locate(g, yt, a, c, inv, nb, cl):
+    """cl[g, a, w]: every lane's cell on axis a (one loop per kind of axis, each vector code)."""
+    if inv > 0.0:
+        for w in range(W):
+            cl[g, a, w] = _uniform_cell(c, inv, yt[g, a, w])
+    else:
+        for w in range(W):
+            cl[g, a, w] = _bisect_cell(c, nb, yt[g, a, w])
 
 
 U3 = np.uint64(3)  # unsigned indices: numba adds no negative-index wraparound to the gathers
@@ -137,17 +179,15 @@ def _component(flat, b, di, dj, c, tx, ty, tz):
 
 
 @inline
-def _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param):
-    """Stage st of every lane of group g into k[g, st]: ``kernel._f`` (the cell located, its
-    polynomial evaluated), as one branch-free loop over the lanes that LLVM makes vector code.
-    ok[g, w] turns False where ``kernel._norm3`` would rescale (tiny or huge speeds)."""
+def _evaluate(g, st, yt, cl, k, ok, rx, ry, rz, gx, gy, gz, flat, ny, nz, param):
+    """Stage st of every lane of group g into k[g, st]: ``kernel._f`` (in the cells ``cl``,
+    its polynomial evaluated), as one branch-free loop over the lanes that LLVM makes vector
+    code.  ok[g, w] turns False where ``kernel._norm3`` would rescale (tiny or huge speeds)."""
     dj = np.uint64(nz * 3)
     di = np.uint64(ny * nz * 3)
     for w in range(W):
         px, py, pz = yt[g, 0, w], yt[g, 1, w], yt[g, 2, w]
-        i = _axis_cell(gx, inv[0], px)
-        j = _axis_cell(gy, inv[1], py)
-        kk = _axis_cell(gz, inv[2], pz)
+        i, j, kk = cl[g, 0, w], cl[g, 1, w], cl[g, 2, w]
         lx, ly, lz = gx[i], gy[j], gz[kk]
         sx, sy, sz = rx[i], ry[j], rz[kk]  # kernel._relocate's 1 / width, tabulated
         tx = (px - lx) * sx
@@ -182,28 +222,15 @@ def _sums(g, n, coef, row, y, h, k, out, comps):
 
 
 @inline
-def _node(c, inv, x):
-    """Cell index of x by one multiply, clamped (only to choose what to prefetch):
-    ``kernel._node_index`` without its branches (periodic wrap, non-uniform axis), which
-    ``eligible`` excludes here.  A NaN point gives some index: a prefetch of any address is
-    harmless."""
-    r = min(max((x - c[0]) * inv, 0.0), c.size - 2.0)
-    return int(r)
-
-
-@inline
-def _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb):
+def _prefetch_lanes(g, live, cl, flat, ny, nz):
     """Ask the cache for every live lane's cell before any lane is evaluated (the corners'
-    first and last components: two cache lines per corner pair).  The cells are found in a
-    loop of vector code; only the prefetches themselves are one lane at a time."""
-    for w in range(W):
-        pb[g, w] = ((_node(gx, inv[0], yt[g, 0, w]) * ny + _node(gy, inv[1], yt[g, 1, w])) * nz
-                    + _node(gz, inv[2], yt[g, 2, w])) * 3
+    first and last components: two cache lines per corner pair), so that the misses of the
+    lanes overlap; the prefetches themselves are one lane at a time."""
     dj = nz * 3
     di = ny * dj
     for w in range(W):
         if live[g, w] != 0:
-            b = pb[g, w]
+            b = ((cl[g, 0, w] * ny + cl[g, 1, w]) * nz + cl[g, 2, w]) * 3
             _prefetch(flat, b)
             _prefetch(flat, b + 5)
             _prefetch(flat, b + di)
@@ -317,7 +344,9 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io
     lrej, act = np.zeros((G, W), np.int8), np.zeros((G, W), np.int8)
     hs, hn = np.zeros((G, W)), np.zeros((G, W))  # the step taken (h, or clipped); the next
     r_ind = R_MAXTIME if param == 0 else R_MAXLEN
-    pb = np.zeros((G, W), np.int64)  # prefetched cells
+    cl = np.zeros((G, 3, W), np.int64)  # every lane's cell
+    # bisection rounds on non-uniform axes
+    nb = np.array([_rounds(gx.size), _rounds(gy.size), _rounds(gz.size)])
     slot = np.zeros((G, W), np.int64)  # the line in each lane (its slot in active), -1: none
     n_act = active.size
     for g in prange(G):
@@ -387,10 +416,13 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io
                     for a in range(3):
                         for w in range(W):
                             ys[g, a, w] = yt[g, a, w]
+                _locate(g, yt, 0, gx, inv[0], nb[0], cl)
+                _locate(g, yt, 1, gy, inv[1], nb[1], cl)
+                _locate(g, yt, 2, gz, inv[2], nb[2], cl)
                 # the scalar kernel's rule: a stage at the c of the one before meets its cells
                 if mc[st] != mc[st - 1]:
-                    _prefetch_lanes(g, live, yt, gx, gy, gz, inv, flat, ny, nz, pb)
-                _evaluate(g, st, yt, k, ok, rx, ry, rz, gx, gy, gz, inv, flat, ny, nz, param)
+                    _prefetch_lanes(g, live, cl, flat, ny, nz)
+                _evaluate(g, st, yt, cl, k, ok, rx, ry, rz, gx, gy, gz, flat, ny, nz, param)
             if y1_first == 0:
                 _sums(g, n_err, mw, 0, y, hs, k, y1, 4)
             # act: 1 take the step (no event in it), 2 reject it (error above the tolerance),
