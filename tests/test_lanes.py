@@ -117,6 +117,43 @@ def test_rectilinear_axes_bit_identical(method, holes):
     assert int(Reason.OUT_OF_DOMAIN) in reasons and (not holes or int(K.R_NAN) in reasons)
 
 
+def _periodic(holes=False, uniform=True):
+    """ABC periodic in x and y, the origin off 0 (the wrap rounds), bounded in z (lines leave
+    through its faces); the x axis uneven unless uniform."""
+    L = 2 * np.pi
+    x = np.linspace(-1.3, L - 1.3, 32, endpoint=False)
+    if not uniform:
+        x = np.sort(np.r_[-1.3, np.random.default_rng(3).uniform(-1.3, L - 1.3, 30)])
+    g = Grid.from_axes(x, np.linspace(0.7, L + 0.7, 24, endpoint=False), np.linspace(0, 6, 20),
+                       periodic=(True, True, False), period=(L, L, 0.0))
+    f = ABCFlow().to_field(grid=g)
+    v = f.vector.copy()
+    if holes:
+        v[10:13, 5:9, 5:10] = np.nan
+    return Field(f.grid, v)
+
+
+@pytest.mark.parametrize("method,uniform,holes", [
+    ("rk4", True, False), ("dopri5", True, True), ("bs23", False, False),
+    ("cashkarp", True, False), ("dop853", False, True)])
+def test_periodic_axes_bit_identical(method, uniform, holes):
+    """Periodic axes in the lanes: cells wrapped as the scalar kernel wraps them, and its cached
+    cell followed (a cell found again may differ from it in the last bit of its faces), also
+    through a rejected step (cashkarp's f(y1) comes after the error test) and a small buffer."""
+    L = 2 * np.pi
+    seeds = np.random.default_rng(1).uniform([0.0, 0.0, 0.1], [L, L, 5.9], (300, 3))
+    seeds[::37, 0] += 3 * L  # an image of the domain three periods away
+    kw = {"step": 0.07} if method == "rk4" else {"rtol": 1e-7}
+    lines = _same(_periodic(holes, uniform), seeds, method=method, cell_aware=False,
+                  max_length=15.0, budget=40, **kw)
+    reasons = set(np.asarray(lines.line_data["reason"]).tolist())
+    assert int(Reason.OUT_OF_DOMAIN) in reasons and (not holes or int(K.R_NAN) in reasons)
+    if method != "rk4":
+        assert lines.line_data["n_rejected"].sum() > 0
+    wrapped = np.ptp(lines.points[:, :2], axis=0)
+    assert np.all(wrapped > L)  # lines crossed the periodic faces
+
+
 @pytest.mark.parametrize("method", ["dopri5", "dop853"])
 def test_adaptive_bit_identical_at_nan_and_stagnation(method):
     lines = _same(_abc(True, True), _seeds(), method=method, rtol=1e-6, cell_aware=False,
@@ -255,7 +292,12 @@ def test_eligible_only_where_it_applies():
         g, m = L.field, L.method
         if last_row is not None:  # the f(y1) stage's weights, changed
             m.a[m.info[K.M_FSAL], :m.info[K.M_NERR]] = last_row
-        return lanes.eligible(g.period, g.inv, m.info, L.io)
+        why = lanes.why_not(g.period, g.inv, m.info, L.io)
+        assert lanes.eligible(g.period, g.inv, m.info, L.io) == (why == "")
+        reasons.append(why)
+        return why == ""
+
+    reasons = []
 
     assert ok()
     # an f(y1) stage whose row differs from b: its point is summed from its own row, as the
@@ -265,9 +307,9 @@ def test_eligible_only_where_it_applies():
     assert ok(method="dopri5", step=None)  # adaptive: per-lane steps
     assert ok(method="dop853", step=None)  # the most stages before f(y1)
     assert ok(method="auto", step=None)  # with the stiffness test
-    assert not ok(cell_aware=True)
-    assert not ok(spacing=0.05)  # resampled output needs the dense output
+    assert not ok(cell_aware=True) and reasons[-1] == "cell-aware stepping"
+    assert not ok(spacing=0.05) and reasons[-1] == "resampled output"  # the dense output
     periodic = ABCFlow().to_field(16, bounds=[[0.0, 2 * np.pi]] * 3)
-    assert not ok(periodic, max_length=1.0)
+    assert ok(periodic, max_length=1.0)
     rect = Grid(np.r_[0.0, 0.5, 2.0, 6.0], np.linspace(0, 6, 7), np.linspace(0, 6, 7))
     assert ok(ABCFlow().to_field(grid=rect))  # bisection on the non-uniform axis

@@ -806,6 +806,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
     max_steps = io[P_MAXSTEPS]
     st_stiff = io[P_STIFF]
     cross = aware and adaptive and io[P_CROSS] != 0
+    wraps = period[0] > 0.0 or period[1] > 0.0 or period[2] > 0.0
     safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
     hmin, hmax, cellfac, stag = fo[O_HMIN], fo[O_HMAX], fo[O_CELLFAC], fo[O_STAG]
     lim_ind = fo[O_MAXTIME] if param == 0 else fo[O_MAXLEN]
@@ -840,7 +841,11 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
         tau, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, I_LASTREJ, beta)
         hk = sf[l, S_HK]
         n_cross, kfail, kwait = si[l, I_NCROSS], si[l, I_KFAIL], si[l, I_KWAIT]
-        if aware:
+        # the line's cell as it was: cell-aware, the one it steps in; plain on a periodic grid,
+        # the cached one (a periodic cell's faces carry the rounding of the point that found
+        # it, so a cell found again could differ in the last bit: a suspended line resumes bit
+        # for bit only so; elsewhere the cell found again is the same)
+        if aware or (wraps and si[l, I_CELL] >= 0):
             for a in range(3):
                 ci[a] = si[l, I_CELL + a]
                 cf[a] = sf[l, S_LO + a]

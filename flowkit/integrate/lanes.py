@@ -1,4 +1,4 @@
-"""Lines in lock-step: the numba backend's path for fixed-step methods on uniform grids.
+"""Lines in lock-step: the numba backend's path for plain (not cell-aware) stepping.
 
 ``kernel._advance_lines`` follows one line at a time, and a line is a chain of dependent work:
 the next stage's point needs this stage's velocity, which needs this stage's cell corners, which
@@ -11,18 +11,21 @@ the loop over the lanes is the innermost loop, and every lane is computed whethe
 running or not (a stopped lane's values are not used).
 
 The arithmetic of a step is the scalar kernel's, operation for operation (the same cell choice,
-polynomial coefficients, stage sums and step update), so the lines are bit-identical to
-``kernel.advance``'s (tests/test_lanes.py).  The cell of a stage point is located afresh every
-time: the scalar kernel keeps its cached cell only while a point is strictly inside it, where
-locating it again gives the same cell, so the choice depends on the point alone.  A lane commits
-only a step that the scalar kernel would commit with no event: its stages finite, its end inside
-the domain and short of the dependent parameter's limit, room in the output buffer.  The step
-that reaches the independent parameter's limit (``max_length`` in arc length, ``max_time`` in
-time) is clipped there, as the scalar kernel clips it, and ends the line.  At anything else — a
-boundary, NaN data, stagnation, a full buffer, ``max_steps`` — the lane stops before that step
-and ``kernel._advance_lines`` finishes the line from the saved state.  Adaptive methods,
-cell-aware stepping, resampled output, periodic and non-uniform axes go to the scalar kernel
-whole (``eligible``).
+polynomial coefficients, stage sums, error norm and step size control), so the lines are
+bit-identical to ``kernel.advance``'s (tests/test_lanes.py), for fixed steps and for the
+embedded pairs alike.  Each lane has its own step size and error estimate: a rejected lane redoes
+its step while the others advance, and a lane whose line stopped takes the group's next line.
+The cell of a stage point is found as the scalar kernel finds it: one multiply on a uniform axis,
+a fixed number of bisection rounds on a non-uniform one, the wrap on a periodic one, where the
+kernel's cached cell is followed too (a cell found again could differ from it in the last bit of
+its faces).  A lane commits only a step that the scalar kernel would commit with no event: its
+stages finite, its end inside the domain and short of the dependent parameter's limit, room in
+the output buffer.  The step that reaches the independent parameter's limit (``max_length`` in
+arc length, ``max_time`` in time) is clipped there, as the scalar kernel clips it, and ends the
+line.  At anything else — a boundary, NaN data, stagnation, a full buffer, ``max_steps``, a step
+below the minimum — the lane stops before that step and ``kernel._advance_lines`` finishes the
+line from the saved state.  ``why_not`` names what sends a launch to the scalar kernel whole
+(cell-aware stepping, resampled output); the trace records it (``Lines.attrs["kernel_path"]``).
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from .methods import lockstep_tableau
 from .schema import (
     DONE,
     EMIT_STEPS,
+    I_CELL,
     I_LASTREJ,
     I_NACC,
     I_NREJ,
@@ -75,7 +79,9 @@ from .schema import (
     S_DEP,
     S_ERRP,
     S_H,
+    S_HI,
     S_K0,
+    S_LO,
     S_TAU,
     S_Y,
 )
@@ -85,14 +91,22 @@ W = 32  # lanes per group: enough cache misses in flight to cover the memory lat
 CHUNK = 4 * W  # lines per group, taken in turn by its lanes
 
 
+def why_not(period, inv, mi, io) -> str:
+    """Why a launch goes to the scalar kernel whole ("" where the lanes take it): the one place
+    that decides.  Plain Python: it runs once a launch, and ``advance`` compiles the lock-step
+    only for launches that pass."""
+    if not lockstep_tableau(mi):
+        return "a method whose stages the lanes do not hold"
+    if io[P_AWARE] != 0:
+        return "cell-aware stepping"
+    if io[P_EMIT] != EMIT_STEPS:
+        return "resampled output"
+    return ""
+
+
 def eligible(period, inv, mi, io) -> bool:
-    """True where the lock-step path applies: a method whose stages fit (``methods.
-    lockstep_tableau``), plain stepping, a vertex per step, every axis bounded.
-    Plain Python: it runs once a launch, and ``advance`` compiles the lock-step only for
-    launches that pass."""
-    if not lockstep_tableau(mi) or io[P_AWARE] != 0 or io[P_EMIT] != EMIT_STEPS:
-        return False
-    return bool(np.all(period == 0.0))
+    """True where the lock-step path applies (``why_not`` says nothing against it)."""
+    return not why_not(period, inv, mi, io)
 
 
 @inline
@@ -132,6 +146,19 @@ def _bisect_cell(c, nb, x):
     return min(max(lo - 1, 0), n - 2)
 
 
+@njit(cache=True)
+def _inv_widths(c, per):
+    """1 / width of every cell of an axis (``kernel._width``'s, the wrap cell's last)."""
+    n = c.size
+    wrap = per > 0.0 and c[0] + per - c[n - 1] > 0.0
+    r = np.empty(n if wrap else n - 1)
+    for i in range(n - 1):
+        r[i] = 1.0 / (c[i + 1] - c[i])
+    if wrap:
+        r[n - 1] = 1.0 / (c[0] + per - c[n - 1])
+    return r
+
+
 @inline
 def _rounds(n):
     """Bisection rounds that find the first node above x among n nodes: r with 2^r > n."""
@@ -142,32 +169,81 @@ def _rounds(n):
 
 
 @inline
-def _locate(g, yt, a, c, inv, nb, cl):
-    """cl[g, a, w]: every lane's cell on axis a (one loop per kind of axis, each vector code)."""
-    if inv > 0.0:
-        for w in range(W):
-            cl[g, a, w] = _uniform_cell(c, inv, yt[g, a, w])
-    else:
-        for w in range(W):
-            cl[g, a, w] = _bisect_cell(c, nb, yt[g, a, w])
-
-
-U3 = np.uint64(3)  # unsigned indices: numba adds no negative-index wraparound to the gathers
+def _up(n, i, stride):
+    """Offset in the flat field from a cell's lower to its upper corners along one axis (the
+    wrap cell of a periodic axis: node 0 above its last node)."""
+    return stride if i + 1 < n else -i * stride
 
 
 @inline
-def _component(flat, b, di, dj, c, tx, ty, tz):
+def _locate(g, yt, a, c, per, inv, nb, stride, cached, kp, cn, cb):
+    """Every lane's cell on axis a as ``kernel._relocate`` finds it: its index cn[g, a, w],
+    the offset cn[g, 3 + a, w] of its upper corners in the flat field, its faces cb[g, a, w]
+    and cb[g, 3 + a, w].  Where ``cached``, a lane whose kp[g, w] is set keeps its cell
+    (``kernel._f``'s cache: the point strictly inside it).  One loop per kind of axis, the
+    bounded ones vector code."""
+    n = c.size
+    if per > 0.0:
+        # interp.locate_axis on the wrapped coordinate; the cell keeps the point's image
+        wrap = c[0] + per - c[n - 1]
+        for w in range(W):
+            if kp[g, w] == 0:
+                x = yt[g, a, w]
+                xw = c[0] + (x - c[0]) % per
+                if xw > c[n - 1]:
+                    i = n - 2 if wrap <= 0.0 else n - 1
+                elif inv > 0.0:
+                    i = _uniform_cell(c, inv, xw)
+                else:
+                    i = _bisect_cell(c, nb, xw)
+                lo = c[i] + (x - xw)
+                cn[g, a, w], cn[g, 3 + a, w] = i, _up(n, i, stride)
+                cb[g, a, w] = lo
+                cb[g, 3 + a, w] = lo + (c[i + 1] - c[i] if i < n - 1 else wrap)
+        return
+    # a bounded axis: the offsets stay the stride (set when the lane took its line)
+    if cached == 0:  # found afresh: off a periodic axis the cache's cell, where it has one
+        if inv > 0.0:
+            for w in range(W):
+                cn[g, a, w] = _uniform_cell(c, inv, yt[g, a, w])
+        else:
+            for w in range(W):
+                cn[g, a, w] = _bisect_cell(c, nb, yt[g, a, w])
+        return
+    for w in range(W):
+        x = yt[g, a, w]
+        i = _uniform_cell(c, inv, x) if inv > 0.0 else _bisect_cell(c, nb, x)
+        keep = kp[g, w] != 0
+        cn[g, a, w] = cn[g, a, w] if keep else i
+        cb[g, a, w] = cb[g, a, w] if keep else c[i]
+        cb[g, 3 + a, w] = cb[g, 3 + a, w] if keep else c[i + 1]
+
+
+@inline
+def _copy_cells(g, act, want, cn, cb, to_n, to_b):
+    """Lane w's cell into the other copy where act[g, w] == want (0: every lane, 3: every lane
+    with act[g, w] != 0)."""
+    for r in range(6):
+        for w in range(W):
+            m = (want == 0) | (act[g, w] == want) | ((want == 3) & (act[g, w] != 0))
+            to_n[g, r, w] = cn[g, r, w] if m else to_n[g, r, w]
+            to_b[g, r, w] = cb[g, r, w] if m else to_b[g, r, w]
+
+
+@inline
+def _component(flat, b, di, dj, dk, c, tx, ty, tz):
     """Component c of the trilinear polynomial of the cell whose first corner starts at
-    flat[b] (b, di, dj, c unsigned): ``kernel._gather``'s coefficients in ``kernel._fc``'s
+    flat[b], its upper corners di, dj, dk further on each axis (all unsigned: a wrap cell's
+    negative offset wraps around too): ``kernel._gather``'s coefficients in ``kernel._fc``'s
     Horner form."""
     v000 = flat[b + c]
     v100 = flat[b + di + c]
     v010 = flat[b + dj + c]
     v110 = flat[b + di + dj + c]
-    v001 = flat[b + U3 + c]
-    v101 = flat[b + di + U3 + c]
-    v011 = flat[b + dj + U3 + c]
-    v111 = flat[b + di + dj + U3 + c]
+    v001 = flat[b + dk + c]
+    v101 = flat[b + di + dk + c]
+    v011 = flat[b + dj + dk + c]
+    v111 = flat[b + di + dj + dk + c]
     a1 = v100 - v000
     a2 = v010 - v000
     a3 = v001 - v000
@@ -179,31 +255,46 @@ def _component(flat, b, di, dj, c, tx, ty, tz):
 
 
 @inline
-def _evaluate(g, st, yt, cl, k, ok, rx, ry, rz, gx, gy, gz, flat, ny, nz, param):
-    """Stage st of every lane of group g into k[g, st]: ``kernel._f`` (in the cells ``cl``,
-    its polynomial evaluated), as one branch-free loop over the lanes that LLVM makes vector
-    code.  ok[g, w] turns False where ``kernel._norm3`` would rescale (tiny or huge speeds)."""
-    dj = np.uint64(nz * 3)
-    di = np.uint64(ny * nz * 3)
-    for w in range(W):
-        px, py, pz = yt[g, 0, w], yt[g, 1, w], yt[g, 2, w]
-        i, j, kk = cl[g, 0, w], cl[g, 1, w], cl[g, 2, w]
-        lx, ly, lz = gx[i], gy[j], gz[kk]
-        sx, sy, sz = rx[i], ry[j], rz[kk]  # kernel._relocate's 1 / width, tabulated
-        tx = (px - lx) * sx
-        ty = (py - ly) * sy
-        tz = (pz - lz) * sz
-        b = np.uint64(((i * ny + j) * nz + kk) * 3)
-        u = _component(flat, b, di, dj, np.uint64(0), tx, ty, tz)
-        v = _component(flat, b, di, dj, np.uint64(1), tx, ty, tz)
-        s = _component(flat, b, di, dj, np.uint64(2), tx, ty, tz)
-        sp = math.sqrt(u * u + v * v + s * s)
-        r = 1.0 / sp if param != 0 else 1.0  # u * 1.0 is u: time parameter, velocity as is
-        k[g, st, 0, w] = u * r
-        k[g, st, 1, w] = v * r
-        k[g, st, 2, w] = s * r
-        k[g, st, 3, w] = r if param != 0 else sp
-        ok[g, w] &= (sp > 1e-150) & (sp < 1e150)
+def _evaluate(g, st, yt, cn, cb, k, ok, gx, gy, gz, rx, ry, rz, flat, ny, nz, param, wraps):
+    """Stage st of every lane of group g into k[g, st]: ``kernel._f`` (in the cells cn, cb,
+    ``_locate``'s, its polynomial evaluated), as one branch-free loop over the lanes that LLVM
+    makes vector code.  ok[g, w] turns False where ``kernel._norm3`` would rescale (tiny or
+    huge speeds).  Two loops: with a periodic axis (``wraps``) the faces and corner offsets of
+    ``_locate``; without, the nodes and strides themselves (a select between the two in one
+    loop cost a tenth of the lock-step's time)."""
+    if wraps != 0:
+        for w in range(W):
+            i, j, kk = cn[g, 0, w], cn[g, 1, w], cn[g, 2, w]
+            _lane(g, st, w, yt, k, ok, i, j, kk, cb[g, 0, w], cb[g, 1, w], cb[g, 2, w], rx, ry,
+                  rz, np.uint64(cn[g, 3, w]), np.uint64(cn[g, 4, w]), np.uint64(cn[g, 5, w]),
+                  flat, ny, nz, param)
+    else:
+        di, dj, dk = np.uint64(ny * nz * 3), np.uint64(nz * 3), np.uint64(3)
+        for w in range(W):
+            i, j, kk = cn[g, 0, w], cn[g, 1, w], cn[g, 2, w]
+            _lane(g, st, w, yt, k, ok, i, j, kk, gx[i], gy[j], gz[kk], rx, ry, rz, di, dj, dk,
+                  flat, ny, nz, param)
+
+
+@inline
+def _lane(g, st, w, yt, k, ok, i, j, kk, lx, ly, lz, rx, ry, rz, di, dj, dk, flat, ny, nz,
+          param):
+    """``_evaluate`` for lane w, in the cell (i, j, kk) with lower faces lx, ly, lz."""
+    tx = (yt[g, 0, w] - lx) * rx[i]  # rx: kernel._relocate's 1 / width, tabulated
+    ty = (yt[g, 1, w] - ly) * ry[j]
+    tz = (yt[g, 2, w] - lz) * rz[kk]
+    # unsigned indices: numba adds no negative-index wraparound to the gathers
+    b = np.uint64(((i * ny + j) * nz + kk) * 3)
+    u = _component(flat, b, di, dj, dk, np.uint64(0), tx, ty, tz)
+    v = _component(flat, b, di, dj, dk, np.uint64(1), tx, ty, tz)
+    s = _component(flat, b, di, dj, dk, np.uint64(2), tx, ty, tz)
+    sp = math.sqrt(u * u + v * v + s * s)
+    r = 1.0 / sp if param != 0 else 1.0  # u * 1.0 is u: time parameter, velocity as is
+    k[g, st, 0, w] = u * r
+    k[g, st, 1, w] = v * r
+    k[g, st, 2, w] = s * r
+    k[g, st, 3, w] = r if param != 0 else sp
+    ok[g, w] &= (sp > 1e-150) & (sp < 1e150)
 
 
 @inline
@@ -222,24 +313,22 @@ def _sums(g, n, coef, row, y, h, k, out, comps):
 
 
 @inline
-def _prefetch_lanes(g, live, cl, flat, ny, nz):
+def _prefetch_lanes(g, live, cn, flat, ny, nz):
     """Ask the cache for every live lane's cell before any lane is evaluated (the corners'
     first and last components: two cache lines per corner pair), so that the misses of the
     lanes overlap; the prefetches themselves are one lane at a time."""
-    dj = nz * 3
-    di = ny * dj
     for w in range(W):
         if live[g, w] != 0:
-            b = ((cl[g, 0, w] * ny + cl[g, 1, w]) * nz + cl[g, 2, w]) * 3
+            b = ((cn[g, 0, w] * ny + cn[g, 1, w]) * nz + cn[g, 2, w]) * 3
+            di, dj, e = cn[g, 3, w], cn[g, 4, w], cn[g, 5, w] + 2  # e: the (k + 1) corner's end
             _prefetch(flat, b)
-            _prefetch(flat, b + 5)
+            _prefetch(flat, b + e)
             _prefetch(flat, b + di)
-            _prefetch(flat, b + di + 5)
+            _prefetch(flat, b + di + e)
             _prefetch(flat, b + dj)
-            _prefetch(flat, b + dj + 5)
+            _prefetch(flat, b + dj + e)
             _prefetch(flat, b + di + dj)
-            _prefetch(flat, b + di + dj + 5)
-
+            _prefetch(flat, b + di + dj + e)
 
 @inline
 def _dot(g, n, coef, row, k, a, out):
@@ -282,11 +371,15 @@ def _error(g, n_err, mw, has_e2, fo, y, y1, hs, k, e5, e3, tmp, err, fin):
 
 
 @inline
-def _hand_back(g, w, l, r_ind, y, tau, h, errp, k, n_acc, n_rej, lrej, stiff, moved, done, sf,
-               si):
+def _hand_back(g, w, l, r_ind, y, tau, h, errp, k, n_acc, n_rej, lrej, stiff, moved, done, kn,
+               kb, sf, si):
     """Lane w's line l back into its state rows, for ``kernel._advance_lines`` to continue
-    (and DONE with reason r_ind where its last step met the parameter's limit)."""
+    (and DONE with reason r_ind where its last step met the parameter's limit); kn, kb: its
+    cell after its last step."""
     if moved[g, w] != 0:
+        for a in range(3):
+            si[l, I_CELL + a] = kn[g, a, w]
+            sf[l, S_LO + a], sf[l, S_HI + a] = kb[g, a, w], kb[g, 3 + a, w]
         for a in range(3):
             sf[l, S_Y + a] = y[g, a, w]
         sf[l, S_DEP], sf[l, S_TAU], sf[l, S_H] = y[g, 3, w], tau[g, w], h[g, w]
@@ -300,7 +393,7 @@ def _hand_back(g, w, l, r_ind, y, tau, h, errp, k, n_acc, n_rej, lrej, stiff, mo
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io, sf, si,
+def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi, fo, io, sf, si,
              out_p, out_par, out_n):
     """Advance the started lines ``active`` in groups of W as far as the lock-step goes; their
     state goes back into ``sf``/``si`` for ``kernel._advance_lines`` to continue.  ``mw``: the
@@ -324,8 +417,12 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io
     expo1 = 1.0 / mi[M_KEXP] - 0.75 * beta
     lim_ind = fo[O_MAXTIME] if param == 0 else fo[O_MAXLEN]
     lim_dep = fo[O_MAXLEN] if param == 0 else fo[O_MAXTIME]
+    # the domain's box; a periodic axis has no faces to leave by
     dlo = np.array([gx[0], gy[0], gz[0]])
     dhi = np.array([gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]])
+    for a in range(3):
+        if period[a] > 0.0:
+            dlo[a], dhi[a] = -np.inf, np.inf
     G = (active.size + CHUNK - 1) // CHUNK
     # every lane's state; a stopped lane keeps being computed (its values unused), so zeros
     y, yt, y1 = np.zeros((G, 4, W)), np.zeros((G, 3, W)), np.zeros((G, 4, W))
@@ -335,7 +432,7 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io
     errp, errpb, err = np.zeros((G, W)), np.zeros((G, W)), np.zeros((G, W))
     e5, e3, tmp = np.zeros((G, W)), np.zeros((G, W)), np.zeros((G, W))
     # 1 / width of every cell, as kernel._relocate divides (a gather instead of a division)
-    rx, ry, rz = 1.0 / (gx[1:] - gx[:-1]), 1.0 / (gy[1:] - gy[:-1]), 1.0 / (gz[1:] - gz[:-1])
+    rx, ry, rz = _inv_widths(gx, period[0]), _inv_widths(gy, period[1]), _inv_widths(gz, period[2])
     n_acc, n_rej = np.zeros((G, W), np.int64), np.zeros((G, W), np.int64)
     # int8 flags and int variables, not bools: numba's alias analysis counts a bool variable as
     # a possible alias, and then marks no array of the loop as not aliasing
@@ -344,7 +441,20 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io
     lrej, act = np.zeros((G, W), np.int8), np.zeros((G, W), np.int8)
     hs, hn = np.zeros((G, W)), np.zeros((G, W))  # the step taken (h, or clipped); the next
     r_ind = R_MAXTIME if param == 0 else R_MAXLEN
-    cl = np.zeros((G, 3, W), np.int64)  # every lane's cell
+    # every lane's cell (_locate's): index and upper-corner offsets, faces; kn, kb: as after
+    # the lane's last step (a rejected one's: before the stages that follow the error test,
+    # which the scalar kernel skips; en, eb: as there)
+    cn, cb = np.zeros((G, 6, W), np.int64), np.zeros((G, 6, W))
+    kn, kb = np.zeros((G, 6, W), np.int64), np.zeros((G, 6, W))
+    en, eb = np.zeros((G, 6, W), np.int64), np.zeros((G, 6, W))
+    kp = np.zeros((G, W), np.int8)  # 1: the lane's stage point is strictly inside its cell
+    # on a periodic axis a cell found again may differ from the cached one in the last bit of
+    # its faces (the rounding of the wrap): only then the cache is followed
+    cached = 0
+    for a in range(3):
+        cached |= int(period[a] > 0.0)
+    strides = np.array([ny * nz * 3, nz * 3, 3])
+    sizes = np.array([gx.size, gy.size, gz.size])
     # bisection rounds on non-uniform axes
     nb = np.array([_rounds(gx.size), _rounds(gy.size), _rounds(gz.size)])
     slot = np.zeros((G, W), np.int64)  # the line in each lane (its slot in active), -1: none
@@ -361,7 +471,7 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io
                     continue
                 if slot[g, w] >= 0:
                     _hand_back(g, w, active[slot[g, w]], r_ind, y, tau, h, errp, k, n_acc,
-                               n_rej, lrej, stiff, moved, done, sf, si)
+                               n_rej, lrej, stiff, moved, done, kn, kb, sf, si)
                     slot[g, w] = -1
                 while nxt < end and slot[g, w] < 0:
                     l = active[nxt]
@@ -378,6 +488,12 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io
                             k[g, 0, a, w] = sf[l, S_K0 + a]
                         n_acc[g, w], n_rej[g, w] = si[l, I_NACC], si[l, I_NREJ]
                         lrej[g, w], stiff[g, w] = si[l, I_LASTREJ], si[l, I_STIFF]
+                        for a in range(3):  # the scalar kernel's cached cell
+                            i = si[l, I_CELL + a]
+                            cn[g, a, w], cn[g, 3 + a, w] = i, _up(sizes[a], i, strides[a])
+                            cb[g, a, w], cb[g, 3 + a, w] = sf[l, S_LO + a], sf[l, S_HI + a]
+                        for r in range(6):
+                            kn[g, r, w], kb[g, r, w] = cn[g, r, w], cb[g, r, w]
                     nxt += 1
             # the checks at the top of the scalar kernel's loop: a lane meeting any of them stops
             n_live = 0
@@ -416,13 +532,26 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io
                     for a in range(3):
                         for w in range(W):
                             ys[g, a, w] = yt[g, a, w]
-                _locate(g, yt, 0, gx, inv[0], nb[0], cl)
-                _locate(g, yt, 1, gy, inv[1], nb[1], cl)
-                _locate(g, yt, 2, gz, inv[2], nb[2], cl)
+                if cached != 0:
+                    for w in range(W):
+                        inside = 1
+                        for a in range(3):
+                            x = yt[g, a, w]
+                            inside &= int(cb[g, a, w] < x) & int(x < cb[g, 3 + a, w])
+                        kp[g, w] = inside
+                _locate(g, yt, 0, gx, period[0], inv[0], nb[0], strides[0], cached, kp,
+                        cn, cb)
+                _locate(g, yt, 1, gy, period[1], inv[1], nb[1], strides[1], cached, kp,
+                        cn, cb)
+                _locate(g, yt, 2, gz, period[2], inv[2], nb[2], strides[2], cached, kp,
+                        cn, cb)
                 # the scalar kernel's rule: a stage at the c of the one before meets its cells
                 if mc[st] != mc[st - 1]:
-                    _prefetch_lanes(g, live, cl, flat, ny, nz)
-                _evaluate(g, st, yt, cl, k, ok, rx, ry, rz, gx, gy, gz, flat, ny, nz, param)
+                    _prefetch_lanes(g, live, cn, flat, ny, nz)
+                _evaluate(g, st, yt, cn, cb, k, ok, gx, gy, gz, rx, ry, rz, flat, ny, nz, param,
+                          cached)
+                if cached != 0 and st == n_err - 1:
+                    _copy_cells(g, act, 0, cn, cb, en, eb)
             if y1_first == 0:
                 _sums(g, n_err, mw, 0, y, hs, k, y1, 4)
             # act: 1 take the step (no event in it), 2 reject it (error above the tolerance),
@@ -461,6 +590,9 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io
                             err[g, w], errp[g, w], errpb[g, w], hs[g, w], h[g, w], lrej[g, w],
                             safety, facmin, facmax, beta, expo1)
                     hn[g, w] = d[g, w] * min(abs(hnext), hmax)
+            if cached != 0:  # a rejected step's cell as at its error test, then the step's cell
+                _copy_cells(g, act, 2, en, eb, cn, cb)
+                _copy_cells(g, act, 3, cn, cb, kn, kb)
             # commit (branch-free: vector code), then emit the committed vertices
             for w in range(W):
                 a_w = act[g, w]
@@ -488,24 +620,26 @@ def lockstep(active, dirs, gx, gy, gz, inv, flat, ny, nz, mc, ma, mw, mi, fo, io
         for w in range(W):  # hand the last lines back
             if slot[g, w] >= 0:
                 _hand_back(g, w, active[slot[g, w]], r_ind, y, tau, h, errp, k, n_acc, n_rej,
-                           lrej, stiff, moved, done, sf, si)
+                           lrej, stiff, moved, done, kn, kb, sf, si)
 
 
 def lockstep_args(launch):
     """``lockstep``'s arguments from a launch (the method's b, e, e2 stacked into rows)."""
     L, f, m = launch, launch.field, launch.method
     mw = np.ascontiguousarray(np.stack([m.b, m.e, m.e2]))
-    return (L.active, L.dirs, f.gx, f.gy, f.gz, f.inv, f.vec.reshape(-1), f.vec.shape[1],
+    return (L.active, L.dirs, f.gx, f.gy, f.gz, f.period, f.inv, f.vec.reshape(-1), f.vec.shape[1],
             f.vec.shape[2], m.c, m.a, mw, m.info, L.fo, L.io, L.sf, L.si, L.out_p, L.out_par,
             L.out_n)
 
 
-def advance(launch):
-    """``kernel.advance``, with lines in lock-step where ``eligible`` (same results).  A Python
+def advance(launch) -> str:
+    """``kernel.advance``, with lines in lock-step where ``why_not`` finds nothing against it
+    (same results); returns the path taken, "lanes" or "scalar: <why_not>".  A Python
     function, not a compiled one: a compiled dispatcher would compile the lock-step (a third of
     the kernels' compile time) for every trace, where only plain (not cell-aware) traces run it."""
     L, f, m, io = launch, launch.field, launch.method, launch.io
-    if eligible(f.period, f.inv, m.info, io):
+    why = why_not(f.period, f.inv, m.info, io)
+    if not why:
         io[P_PASS] = PASS_SETUP
         advance_one_by_one(L)
         lockstep(*lockstep_args(L))
@@ -514,3 +648,4 @@ def advance(launch):
         advance_one_by_one(L)
     finally:
         io[P_PASS] = PASS_FULL
+    return f"scalar: {why}" if why else "lanes"

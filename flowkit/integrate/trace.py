@@ -41,12 +41,13 @@ def trace(field: Field, seeds, options: TraceOptions | None = None, *, backend="
     """
     opts = resolve_options(options, kw)
     seeds = _seeds(seeds)
-    parts = list(_batches(field, seeds, opts, backend=backend))
+    setup = _Setup(field, opts, backend)
+    parts = list(_batches(field, seeds, opts, setup))
     if len(parts) == 1:
         lines = parts[0]  # no copy
     else:
         lines = Lines.concatenate(parts) if parts else _empty(field, opts)
-    lines.attrs = line_attrs(field, opts)
+    lines.attrs = line_attrs(field, opts, setup.path)
     return lines
 
 
@@ -66,8 +67,9 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
     seeds = _seeds(seeds)
     writer = None
     try:
-        for part in _batches(field, seeds, opts, batch_seeds, backend):
-            part.attrs = line_attrs(field, opts)
+        setup = _Setup(field, opts, backend)
+        for part in _batches(field, seeds, opts, setup, batch_seeds):
+            part.attrs = line_attrs(field, opts, setup.path)
             if writer is None:
                 writer = LinesWriter.like(part, path, position_dtype=position_dtype)
             writer.append(part)
@@ -92,9 +94,11 @@ def resolve_options(options, kw) -> TraceOptions:
     return opts.replace(**kw) if kw else opts
 
 
-def line_attrs(field: Field, opts: TraceOptions) -> dict:
-    """The ``Lines.attrs`` that ``trace`` records: the options, the field's source and box."""
+def line_attrs(field: Field, opts: TraceOptions, path: str | None = None) -> dict:
+    """The ``Lines.attrs`` that ``trace`` records: the options, the field's source and box, and
+    the ``path`` the lines took (``_Setup.path``), where known."""
     return {**_attributes.metadata(field, opts.attributes),
+        **({"kernel_path": path} if path else {}),
         "method": opts.method_name, "rtol": str(opts.rtol), "atol": str(opts.atol),
         "parameter": opts.parameter, "direction": opts.direction,
         "cell_aware": int(opts.cell_aware),
@@ -172,6 +176,9 @@ class _Setup:
             self.advance = bind(field, opts.attributes)
         self.n_columns = getattr(self.advance, "n_columns", 0)
         self.point_data = None  # the last run's backend attributes, in its vertex order
+        # what ran the passes: lanes.advance names its path; another backend by its name
+        self.paths = set()
+        self.backend_name = backend.split(":")[0] if isinstance(backend, str) else "callable"
         entry = opts.entry
         _check_backend(entry, backend)
         g = field.grid
@@ -233,8 +240,9 @@ class _Setup:
         buf_n = np.zeros(n, np.int64)
         while active.size:
             out_p, out_par, out_n = buf_p[:active.size], buf_par[:active.size], buf_n[:active.size]
-            self.advance(Launch(active, seeds, dirs, spacing, phase, *self.arrays, self.fo, io,
-                                sf, si, out_p, out_par, out_n))
+            ran = self.advance(Launch(active, seeds, dirs, spacing, phase, *self.arrays, self.fo,
+                                      io, sf, si, out_p, out_par, out_n))
+            self.paths.add(f"numba {ran}" if isinstance(ran, str) else self.backend_name)
             m = int(out_n.sum())
             part = np.empty((m, 3)), np.empty(m), np.empty(m), np.empty(m, np.int64)
             K.pack(active, out_p, out_par, out_n, *part)  # grouped by line
@@ -254,6 +262,12 @@ class _Setup:
         t, s = t[order], s[order]
         self._keep_point_data(extra, t, s, order)
         return pts[order], t, s, owner[order], si
+
+    @property
+    def path(self) -> str:
+        """The paths the passes took so far ("numba lanes", "numba scalar: cell-aware
+        stepping", "opencl", "driver: ros34pw2"...), joined by "; "."""
+        return "; ".join(sorted(self.paths))
 
     def _keep_point_data(self, extra, t, s, order):
         self.point_data = None
@@ -290,8 +304,7 @@ def _backend(backend):
     raise ValueError(f"unknown backend {backend!r}; use 'numba' or 'opencl[:PLATFORM[:DEVICE]]'")
 
 
-def _batches(field, seeds, opts, batch_seeds=BATCH_SEEDS, backend="numba"):
-    setup = _Setup(field, opts, backend)
+def _batches(field, seeds, opts, setup, batch_seeds=BATCH_SEEDS):
     n = seeds.shape[0]
     show = opts.progress if opts.progress is not None else (n >= PROGRESS_MIN_SEEDS and sys.stderr.isatty())
     bar = None
@@ -318,6 +331,7 @@ def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> L
         dirs = (np.tile(np.array([-1.0, 1.0]), n) if both
                 else np.full(n, -1.0 if opts.direction == "backward" else 1.0))
         pts, t, s, owner, cols = entry.load_driver()(entry, setup, tseeds, dirs, opts.max_steps)
+        setup.paths.add(f"driver: {entry.name}")
         return _assemble(field, opts, seeds, id0, pts, t, s, owner, cols)
     if both:  # task 2i: backward half, 2i + 1: forward half
         tseeds = np.repeat(seeds, 2, axis=0)

@@ -324,6 +324,7 @@ class EvenSeeder:
         # line_data column of the lines a StiffSwitch traced again (ros34pw2), if any
         retrace = opts.entry.retrace
         self.retraced = None if retrace is None else retrace.name
+        self.paths = set()  # the trace calls' kernel paths
         self.seed, self.backend, self.max_lines = int(seed), backend, max_lines
         g = field.grid
         self.bounds, self.period = g.bounds, np.array(g.period, np.float64)
@@ -410,6 +411,7 @@ class EvenSeeder:
         self.stats["trace_seconds"] += time.perf_counter() - t0
         self.stats["trace_calls"] += 1
         self.stats["trace_vertices"] += lines.n_points
+        self.paths.update(lines.attrs.get("kernel_path", "").split("; "))
         return lines
 
     def _grow(self, seeds, l0):
@@ -548,7 +550,7 @@ class EvenSeeder:
         pts, t, s = st.pts[keep], st.t[keep], st.s[keep]
         seed_of = np.repeat(seeds, counts, axis=0)
         point_data = _attributes.compute(self.field, opts.attributes, pts, t, s, seed_of)
-        attrs = line_attrs(self.field, opts)
+        attrs = line_attrs(self.field, opts, "; ".join(sorted(self.paths - {""})))
         attrs.update(seeding="even", dsep=self.dsep, dtest=self.dtest, seeding_seed=self.seed,
                      candidates_traced=self.stats["traced"],
                      candidates_rejected=self.stats["rejected"])
