@@ -25,6 +25,10 @@ import scipy
 from numba import njit
 from scipy.integrate import solve_ivp
 
+# timed runs are the lanes' (compiled in the first call), never the scalar kernel's while the
+# lock-step compiles in the background
+os.environ.setdefault("FLOWKIT_LOCKSTEP_WAIT", "1")
+
 from flowkit.fields import Field, interp
 from flowkit.fields.analytic import ABCFlow
 from flowkit.io.atomic import atomic_path

@@ -8,6 +8,10 @@ import subprocess
 
 import pytest
 
+# the lock-step compiles in the launch that needs it (not in the background, with the scalar
+# kernel tracing meanwhile): tests of the lanes must run the lanes; subprocesses inherit it
+os.environ.setdefault("FLOWKIT_LOCKSTEP_WAIT", "1")
+
 
 @pytest.fixture(scope="session")
 def display():

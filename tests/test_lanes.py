@@ -3,10 +3,11 @@ bit, with the lock-step doing the steps where it applies."""
 
 import copy
 import re
+import threading
 
 import numpy as np
 import pytest
-from numba import njit
+from numba import njit, typeof
 
 from flowkit import trace
 from flowkit.fields.analytic import ABCFlow, SolidBodyRotation
@@ -41,6 +42,7 @@ def _seeds(n=300):
 def _same(field, seeds, **kw):
     a = trace(field, seeds, backend=K.advance, **kw)
     b = trace(field, seeds, backend=lanes.advance, **kw)
+    assert b.attrs["kernel_path"] == "numba lanes"
     assert np.array_equal(a.offsets, b.offsets)
     assert np.array_equal(a.points, b.points, equal_nan=True)
     for key in a.line_data:
@@ -313,3 +315,42 @@ def test_eligible_only_where_it_applies():
     assert ok(periodic, max_length=1.0)
     rect = Grid(np.r_[0.0, 0.5, 2.0, 6.0], np.linspace(0, 6, 7), np.linspace(0, 6, 7))
     assert ok(ABCFlow().to_field(grid=rect))  # bisection on the non-uniform axis
+
+
+def test_scalar_kernel_traces_while_the_lock_step_compiles(monkeypatch):
+    """Where the lock-step is neither compiled nor in the disk cache, the launches go to the
+    scalar kernel (the same lines, the path recorded) and it compiles in a background thread
+    once the trace is done; then the lanes take over."""
+    gate, ready = threading.Event(), []
+    monkeypatch.setattr(lanes, "WAIT", False)
+    monkeypatch.setattr(lanes, "_pending", {})
+    monkeypatch.setattr(lanes, "_in_cache", lambda sig: False)
+    monkeypatch.setattr(lanes, "_compiled", lambda sig: bool(ready))
+    monkeypatch.setattr(lanes, "_compile", lambda sig: gate.wait(30) and ready.append(sig))
+    f, s = _abc(True), _seeds()
+    kw = {"method": "dopri5", "rtol": 1e-6, "cell_aware": False, "max_length": 8.0,
+          "budget": 9}  # several launches
+    a = trace(f, s, **kw)
+    assert a.attrs["kernel_path"] == "numba scalar: " + lanes.COMPILING
+    assert len(lanes._pending) == 1  # one compile, started after the trace
+    (t,) = lanes._pending.values()
+    assert t is not None and t.is_alive()
+    trace(f, s, **kw)
+    assert lanes._pending == {next(iter(lanes._pending)): t}
+    gate.set()
+    t.join(30)
+    b = trace(f, s, **kw)
+    assert b.attrs["kernel_path"] == "numba lanes"
+    assert np.array_equal(a.offsets, b.offsets)
+    assert np.array_equal(a.points, b.points, equal_nan=True)
+
+
+def test_lock_step_found_in_the_disk_cache():
+    """The probe of numba's cache index finds the lock-step this process compiled (it is
+    cached on disk), so a fresh process loads it instead of tracing without it."""
+    f = _abc()
+    L = _first_launch(f, _seeds(5), method="rk4", step=0.1, max_length=1.0, cell_aware=False)
+    sig = tuple(typeof(a) for a in lanes.lockstep_args(L))
+    lanes.lockstep.compile(sig)
+    assert lanes._in_cache(sig)
+    assert not lanes._in_cache(sig[:-1] + (typeof(np.zeros(3, np.int32)),))

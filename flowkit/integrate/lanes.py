@@ -30,10 +30,13 @@ line from the saved state.  ``why_not`` names what sends a launch to the scalar 
 
 from __future__ import annotations
 
+import logging
 import math
+import os
+import threading
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, typeof
 
 from ..jit import inline
 from .kernel import R_MAXLEN, R_MAXTIME, _next_step, _prefetch, _put, _retry
@@ -632,13 +635,77 @@ def lockstep_args(launch):
             L.out_n)
 
 
+# The lock-step takes tens of seconds to compile on a fresh machine, and the scalar kernel gives
+# the same lines.  Where numba's disk cache holds it, the launch loads it (a second); otherwise
+# the launches go to the scalar kernel and ``compile_pending`` (called when a trace is done)
+# compiles it in a background thread for the traces after.  Not during the trace: loading or
+# compiling takes numba's compiler lock, which the trace's own kernels may still need.
+# WAIT (FLOWKIT_LOCKSTEP_WAIT=1; ``flowkit compile`` and the tests): compile in the launch.
+WAIT = os.environ.get("FLOWKIT_LOCKSTEP_WAIT", "") not in ("", "0")
+COMPILING = "the lock-step kernel is not compiled yet"
+_LOG = logging.getLogger("flowkit.compile")
+_pending: dict = {}  # argument types -> None (to compile) or the thread compiling them
+
+
+def _compiled(sig) -> bool:
+    return sig in lockstep.overloads
+
+
+def _in_cache(sig) -> bool:
+    """Whether numba's disk cache holds ``lockstep`` for sig (its index, read as numba's
+    ``Cache.load_overload`` reads it; False where that cannot be read)."""
+    try:
+        cache = lockstep._cache
+        key = cache._index_key(sig, lockstep.targetctx.codegen())
+        return key in cache._cache_file._load_index()
+    except Exception:  # noqa: BLE001 (numba internals: then compile in the background)
+        return False
+
+
+def _compile(sig) -> None:
+    try:
+        lockstep.compile(sig)
+    except Exception:  # noqa: BLE001 (a thread: the launches stay on the scalar kernel)
+        _LOG.exception("compiling the lock-step kernel failed")
+
+
+def _lockstep_ready(args) -> bool:
+    """True when ``lockstep`` can run for these arguments now: compiled, in the disk cache
+    (loaded here), or WAIT (compiled here); else it is left to ``compile_pending``."""
+    if WAIT:
+        return True
+    sig = tuple(typeof(a) for a in args)
+    if _compiled(sig):
+        return True
+    if sig not in _pending and _in_cache(sig):
+        lockstep.compile(sig)
+        return True
+    if sig not in _pending:
+        _pending[sig] = None
+        _LOG.info("%s: the scalar kernel traces until it is (the same lines); it compiles in "
+                  "the background after this trace, and `flowkit compile lockstep` compiles "
+                  "it once for every later run", COMPILING)
+    return False
+
+
+def compile_pending() -> None:
+    """Start the background compile of the lock-step for the launches that went without it."""
+    for sig, t in list(_pending.items()):
+        if t is None:
+            _pending[sig] = t = threading.Thread(target=_compile, args=(sig,), daemon=True,
+                                                 name="flowkit-lockstep-compile")
+            t.start()
+
+
 def advance(launch) -> str:
     """``kernel.advance``, with lines in lock-step where ``why_not`` finds nothing against it
-    (same results); returns the path taken, "lanes" or "scalar: <why_not>".  A Python
-    function, not a compiled one: a compiled dispatcher would compile the lock-step (a third of
-    the kernels' compile time) for every trace, where only plain (not cell-aware) traces run it."""
+    (same results); returns the path taken, "lanes" or "scalar: <why>".  A Python function,
+    not a compiled one: a compiled dispatcher would compile the lock-step (a third of the
+    kernels' compile time) for every trace, where only plain (not cell-aware) traces run it."""
     L, f, m, io = launch, launch.field, launch.method, launch.io
     why = why_not(f.period, f.inv, m.info, io)
+    if not why and not _lockstep_ready(lockstep_args(L)):
+        why = COMPILING
     if not why:
         io[P_PASS] = PASS_SETUP
         advance_one_by_one(L)

@@ -42,7 +42,10 @@ def trace(field: Field, seeds, options: TraceOptions | None = None, *, backend="
     opts = resolve_options(options, kw)
     seeds = _seeds(seeds)
     setup = _Setup(field, opts, backend)
-    parts = list(_batches(field, seeds, opts, setup))
+    try:
+        parts = list(_batches(field, seeds, opts, setup))
+    finally:
+        lanes.compile_pending()
     if len(parts) == 1:
         lines = parts[0]  # no copy
     else:
@@ -82,6 +85,8 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
         if writer is not None:
             writer.abort()
         raise
+    finally:
+        lanes.compile_pending()
 
 
 # -- options, stagnation and metadata as trace resolves them (the seeders use them too) ------
