@@ -563,15 +563,13 @@ class Viewer:
         return lines
 
     def set_lines(self, lines: Lines) -> None:
-        """Show ``lines`` (with the same attributes) instead: a new renderer and picker; the
-        camera, style and overlays stay."""
+        """Show ``lines`` (with the same attributes) instead: the renderer takes their geometry
+        into its buffers (``LineRenderer.set_lines``: its programs, vertex arrays and
+        framebuffers stay), a new picker; the camera, style and overlays stay."""
         problem = unreadable(lines, self.style)
         if problem is not None:
             raise StyleError(problem)
-        old = self.renderer
-        self.renderer = LineRenderer(lines, self.ctx, tolerance=self._tolerance,
-                                     bounds=old.bounds)
-        old.release()
+        self.renderer.set_lines(lines)
         self.lines = lines
         self.picker = Picker(lines.points)
         self.probe, self.probe_pinned = None, False
