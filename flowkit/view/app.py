@@ -571,7 +571,7 @@ class Viewer:
             raise StyleError(problem)
         self.renderer.set_lines(lines)
         self.lines = lines
-        self.picker = Picker(lines.points)
+        self.picker = Picker(lines.points, start=False)  # built when first asked for
         self.probe, self.probe_pinned = None, False
         self._resolved = (None, self.style)
         self.flags = self._flags(self.style)  # linear attributes may differ
