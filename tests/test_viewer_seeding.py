@@ -137,7 +137,10 @@ def test_rake_drag_reuses_the_renderer_and_draws_as_a_new_one(display, tmp_path,
             x, y = v.handle_xy("end")
             assert v.grab(x, y) == "end"
             v.on_drag(-12 if k % 2 else 15, 5)
-            v.step()  # while the handle is held: traced live (it keeps up at this size)
+            n = v.retraces
+            v.step()  # while the handle is held: traced live while that keeps up
+            if k == 0:  # no re-trace timed yet: live
+                assert v.retraces == n + 1 and v.live_time() == v.reseed_time > 0
             v.release()
             v.step()
         assert v.retraces >= 4 and v.rake != s.seeding.rake
