@@ -153,7 +153,7 @@ class LineRenderer:
         self._ranges: dict[str, float] = {}
         self._auto: dict[tuple[str, Range], tuple[float, float]] = {}  # ranges from the data
         self._f32: dict[str, np.ndarray] = {}
-        self._points = self._texture(np.c_[lines.points, self._arc].astype(np.float32), 4,
+        self._points = self._texture([lines.points, self._arc], 4,
                                      self._points)
         for name, tex in self._attrs.items():  # rewritten when a style reads them again
             old = self._spare.pop(name, None)
@@ -201,17 +201,23 @@ class LineRenderer:
         self.allocations += 1
         return self.ctx.buffer(reserve=4)
 
-    def _texture(self, values: np.ndarray, components: int,
+    def _texture(self, columns: list[np.ndarray], components: int,
                  reuse: moderngl.Texture | None = None) -> moderngl.Texture:
-        """Float32 texture of per-point values, TEX_WIDTH points per row, nearest filtering;
-        ``reuse``'s storage is written when it has that size (else it is released)."""
+        """Float32 texture of per-point values (``columns``: (N,) or (N, k) arrays, side by side,
+        ``components`` in all), TEX_WIDTH points per row, nearest filtering; ``reuse``'s storage
+        is written when it has that size (else it is released)."""
         size = point_texture_shape(self.lines.n_points)
         if size[1] > self.ctx.info["GL_MAX_TEXTURE_SIZE"]:
             raise ValueError(f"{self.lines.n_points} points need a {size[0]}x{size[1]} texture; "
                              f"this OpenGL allows {self.ctx.info['GL_MAX_TEXTURE_SIZE']} rows")
+        n = self.lines.n_points
         data = np.zeros((size[0] * size[1], components), np.float32)
-        if len(values):
-            data[:len(values)] = values.reshape(len(values), -1)[:, :components]
+        c = 0
+        for col in columns:  # (float32 as np.c_[...].astype(np.float32) gave)
+            col = np.asarray(col)
+            col = col[:, None] if col.ndim == 1 else col.reshape(n, col.shape[-1])
+            data[:n, c:c + col.shape[1]] = col
+            c += col.shape[1]
         if reuse is not None:
             if reuse.size == size and reuse.components == components:
                 reuse.write(data)
@@ -236,7 +242,7 @@ class LineRenderer:
             if v.ndim != 1:
                 raise StyleError(f"attribute '{name}' has shape {v.shape}; a style can only map "
                                  f"scalar (one value per vertex) attributes")
-            buf = self._texture(np.c_[v, self._slopes_of(name)].astype(np.float32), 2,
+            buf = self._texture([v, self._slopes_of(name)], 2,
                                 self._spare.pop(name, None))
             self._attrs[name] = buf
         return buf
