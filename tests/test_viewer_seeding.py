@@ -107,6 +107,58 @@ def test_rake_drag_retraces_and_saved_spec_traces_the_same(display, tmp_path, ca
         v.close()
 
 
+def test_rake_drag_reuses_the_renderer_and_draws_as_a_new_one(display, tmp_path, monkeypatch):
+    """Lines traced again during a drag go into the renderer's own buffers: no new renderer,
+    program, vertex array, texture or buffer per drag, and the frame is the picture a fresh
+    renderer of those lines draws."""
+    from flowkit.render import renderer as renderer_module
+    from flowkit.view.app import Viewer
+    from flowkit.view.seeding import open_scene
+
+    (tmp_path / "plain.toml").write_text(STYLE)
+    (tmp_path / "scene.toml").write_text(SCENE)
+    s = open_scene(tmp_path / "scene.toml")
+    v = Viewer(s.lines, s.style_path, size=(320, 200), vsync=False, camera=s.camera,
+               seeding=s.seeding, units=s.units)
+    try:
+        v.show_panel = False
+        v.step()
+        r = v.renderer
+        vaos, compiles, allocations = dict(r._vaos), r.programs.compiles, r.allocations
+        made = []
+        real_init = renderer_module.LineRenderer.__init__
+
+        def counting_init(self, *args, **kwargs):
+            made.append(self)
+            real_init(self, *args, **kwargs)
+
+        monkeypatch.setattr(renderer_module.LineRenderer, "__init__", counting_init)
+        for k in range(4):
+            x, y = v.handle_xy("end")
+            assert v.grab(x, y) == "end"
+            v.on_drag(-12 if k % 2 else 15, 5)
+            n = v.retraces
+            v.step()  # while the handle is held: traced live while that keeps up
+            if k == 0:  # no re-trace timed yet: live
+                assert v.retraces == n + 1 and v.live_time() == v.reseed_time > 0
+            v.release()
+            v.step()
+        assert v.retraces >= 4 and v.rake != s.seeding.rake
+        assert made == [] and v.renderer is r  # not rebuilt for the new lines
+        assert r.programs.compiles == compiles  # the compiled programs serve the new lines
+        assert r._vaos == vaos and all(r._vaos[k] is vaos[k] for k in vaos)
+        assert r.allocations == allocations  # textures and buffers written in place
+        assert r.lines is v.lines and r.uploaded_attributes() == ["speed"]
+        live = v.renderer.read()
+        monkeypatch.undo()
+        with renderer_module.LineRenderer(v.lines, v.ctx, bounds=r.bounds) as fresh:
+            fresh.draw(v.style, tuple(v.scene_size), v.camera)
+            still = fresh.read()
+        np.testing.assert_array_equal(live, still)
+    finally:
+        v.close()
+
+
 def test_scene_with_inline_style_needs_a_style_file(tmp_path):
     from flowkit.view.seeding import open_scene
 

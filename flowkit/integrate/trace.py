@@ -413,12 +413,20 @@ def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols,
     counts = np.bincount(owner, minlength=nt)
     ld = {"seed_id": np.arange(id0, id0 + n, dtype=np.int64)}
     if both:
-        rank = np.arange(owner.size) - (np.cumsum(counts) - counts)[owner]
         line = owner // 2
         fwd = owner % 2
         keep = (fwd == 1) | (s != 0.0)  # the seed appears once, in the forward half
-        order = np.lexsort((np.where(fwd == 1, rank, -rank)[keep], fwd[keep], line[keep]))
-        idx = np.flatnonzero(keep)[order]
+        if owner.size < 2 or np.all(owner[1:] >= owner[:-1]):
+            # tasks in order (as the backends give them): each backward half reversed in place,
+            # then the seed dropped from it -- the lexsort below without sorting
+            end = np.cumsum(counts)
+            pos = np.arange(owner.size)
+            perm = np.where(fwd == 1, pos, (2 * end - counts - 1)[owner] - pos)
+            idx = perm[keep[perm]]
+        else:
+            rank = np.arange(owner.size) - (np.cumsum(counts) - counts)[owner]
+            order = np.lexsort((np.where(fwd == 1, rank, -rank)[keep], fwd[keep], line[keep]))
+            idx = np.flatnonzero(keep)[order]
         line_of = line[idx]
         for name, c in cols.items():
             if name == "reason":

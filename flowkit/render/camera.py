@@ -13,6 +13,8 @@ FITS = ("bounds", "sphere")
 VIEWS = ("+x", "-x", "+y", "-y", "+z", "-z", "iso")
 FILL = 0.9  # fitted bounds span this fraction of the image's limiting side (room for widths)
 _AXES = np.eye(3)
+SETUPS_KEPT = 8  # Camera.setup results kept
+_SETUPS: dict[tuple, CameraSetup] = {}
 
 
 @dataclass(frozen=True)
@@ -110,8 +112,28 @@ class Camera:
         return best
 
     def setup(self, bounds: np.ndarray, width: int, height: int) -> CameraSetup:
-        """View and projection for lines with ``bounds`` (3, 2) on a width x height image."""
+        """View and projection for lines with ``bounds`` (3, 2) on a width x height image.
+        The last few are kept (a viewer frame asks for the same one several times: scene,
+        overlays, picking); their arrays are read-only."""
         b = np.asarray(bounds, float)
+        try:
+            key = (self, b.tobytes(), b.shape, int(width), int(height))
+            hit = _SETUPS.get(key)
+        except (TypeError, ValueError):  # a field that is not hashable (a list): not kept
+            key = hit = None
+        if hit is not None:
+            return hit
+        out = self._setup(b, width, height)
+        if key is not None:
+            for a in (out.view, out.proj, out.eye, out.target):
+                if isinstance(a, np.ndarray):
+                    a.setflags(write=False)
+            if len(_SETUPS) >= SETUPS_KEPT:
+                del _SETUPS[next(iter(_SETUPS))]
+            _SETUPS[key] = out
+        return out
+
+    def _setup(self, b: np.ndarray, width: int, height: int) -> CameraSetup:
         corners = np.array(np.meshgrid(*b)).reshape(3, -1).T
         mid = b.mean(axis=1)
         centre = mid if self.target is None else np.asarray(self.target, float)

@@ -112,12 +112,35 @@ class LineRenderer:
         if not (math.isfinite(tolerance) and tolerance >= 0):
             raise ValueError(f"tolerance = {tolerance!r}: expected a number of pixels >= 0")
         self.msaa = (not software) if msaa is None else bool(msaa)
-        self.lines = lines
         self.tolerance = float(tolerance)
-        self.bounds = lines.bounds() if bounds is None else np.array(bounds, float).reshape(3, 2)
-        self._starts, self._stops = runs(lines)
-        if 2 * lines.n_points + len(self._starts) + 6 >= 2**31:
+        self._box = None  # the bounds given (None: the lines' own)
+        self._points: moderngl.Texture | None = None
+        self._spare: dict[str, moderngl.Texture] = {}  # attribute textures of earlier lines
+        self._attrs: dict[str, moderngl.Texture] = {}
+        self.allocations = 0  # GL textures and buffers this renderer created (set_lines reuses)
+        with self.ctx:  # moderngl does not switch contexts per call: ours, around all GL work
+            self._ids = self._buffer()  # per frame: kept point ids (simplify.select)
+            self._ibo = self._buffer()  # per frame: strip indices with restarts
+        self._vaos: dict[tuple, moderngl.VertexArray] = {}
+        self._fbos: dict[tuple, tuple] = {}
+        self.programs = program_cache(self.ctx)
+        self.set_lines(lines, bounds)
+
+    @_current
+    def set_lines(self, lines: Lines, bounds=None) -> None:
+        """Draw ``lines`` from now on (the viewer's lines traced again): their geometry and
+        the attributes styles read are uploaded into this renderer's textures (written in place
+        when their size stays) and everything derived from the old lines is dropped; the
+        programs, vertex arrays, index buffers and framebuffers stay.  ``bounds``: see
+        ``__init__``; None keeps the box given before (or takes the new lines' own)."""
+        if bounds is not None:
+            self._box = np.array(bounds, float).reshape(3, 2)
+        self.bounds = lines.bounds() if self._box is None else self._box
+        starts, stops = runs(lines)
+        if 2 * lines.n_points + len(starts) + 6 >= 2**31:
             raise ValueError(f"{lines.n_points} points: too many to draw in one call")
+        self.lines = lines
+        self._starts, self._stops = starts, stops
         self._xyz = np.ascontiguousarray(lines.points, np.float64)
         self._geometry: np.ndarray | None = None  # DP importance of the geometry alone
         # per (placed attributes, mapped attributes' tolerances): a style's importance
@@ -129,31 +152,31 @@ class LineRenderer:
         self._frame_key = None
         self._ranges: dict[str, float] = {}
         self._auto: dict[tuple[str, Range], tuple[float, float]] = {}  # ranges from the data
-        # moderngl does not switch contexts per call: make ours current around all GL work
-        with self.ctx:
-            self._points = self._texture(np.c_[lines.points, self._arc].astype(np.float32), 4)
-            self._ids = self.ctx.buffer(reserve=4)  # per frame: kept point ids (simplify.select)
-            self._ibo = self.ctx.buffer(reserve=4)  # per frame: strip indices with restarts
+        self._f32: dict[str, np.ndarray] = {}
+        self._points = self._texture([lines.points, self._arc], 4,
+                                     self._points)
+        for name, tex in self._attrs.items():  # rewritten when a style reads them again
+            old = self._spare.pop(name, None)
+            if old is not None:
+                old.release()
+            self._spare[name] = tex
+        self._attrs = {}
         self.n_indices = self.n_drawn = 0
         # this frame's draw calls: (line style drawn alone, or None: the whole style; first
         # index, index count); a transfer function splits the strips by range (see _select)
         self._draws: list[tuple[str | None, int, int]] = []
-        self._attrs: dict[str, moderngl.Texture] = {}
-        self._f32: dict[str, np.ndarray] = {}
-        self._vaos: dict[tuple, moderngl.VertexArray] = {}
-        self._fbos: dict[tuple, tuple] = {}
-        self.programs = program_cache(self.ctx)
 
     @_current
     def release(self) -> None:
         """Free this renderer's buffers and framebuffers (programs stay cached on the context)."""
-        for obj in [*self._vaos.values(), *self._attrs.values(), self._points, self._ids,
-                    self._ibo]:
+        for obj in [*self._vaos.values(), *self._attrs.values(), *self._spare.values(),
+                    self._points, self._ids, self._ibo]:
             if obj is not None:
                 obj.release()
         self._release_targets()
         self._vaos.clear()
         self._attrs.clear()
+        self._spare.clear()
 
     def _release_targets(self) -> None:
         for ms, out in self._fbos.values():
@@ -174,16 +197,34 @@ class LineRenderer:
     def uploaded_attributes(self) -> list[str]:
         return list(self._attrs)
 
-    def _texture(self, values: np.ndarray, components: int) -> moderngl.Texture:
-        """Float32 texture of per-point values, TEX_WIDTH points per row, nearest filtering."""
+    def _buffer(self) -> moderngl.Buffer:
+        self.allocations += 1
+        return self.ctx.buffer(reserve=4)
+
+    def _texture(self, columns: list[np.ndarray], components: int,
+                 reuse: moderngl.Texture | None = None) -> moderngl.Texture:
+        """Float32 texture of per-point values (``columns``: (N,) or (N, k) arrays, side by side,
+        ``components`` in all), TEX_WIDTH points per row, nearest filtering; ``reuse``'s storage
+        is written when it has that size (else it is released)."""
         size = point_texture_shape(self.lines.n_points)
         if size[1] > self.ctx.info["GL_MAX_TEXTURE_SIZE"]:
             raise ValueError(f"{self.lines.n_points} points need a {size[0]}x{size[1]} texture; "
                              f"this OpenGL allows {self.ctx.info['GL_MAX_TEXTURE_SIZE']} rows")
+        n = self.lines.n_points
         data = np.zeros((size[0] * size[1], components), np.float32)
-        if len(values):
-            data[:len(values)] = values.reshape(len(values), -1)[:, :components]
+        c = 0
+        for col in columns:  # (float32 as np.c_[...].astype(np.float32) gave)
+            col = np.asarray(col)
+            col = col[:, None] if col.ndim == 1 else col.reshape(n, col.shape[-1])
+            data[:n, c:c + col.shape[1]] = col
+            c += col.shape[1]
+        if reuse is not None:
+            if reuse.size == size and reuse.components == components:
+                reuse.write(data)
+                return reuse
+            reuse.release()
         tex = self.ctx.texture(size, components, data.tobytes(), dtype="f4")
+        self.allocations += 1
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
         return tex
 
@@ -201,7 +242,8 @@ class LineRenderer:
             if v.ndim != 1:
                 raise StyleError(f"attribute '{name}' has shape {v.shape}; a style can only map "
                                  f"scalar (one value per vertex) attributes")
-            buf = self._texture(np.c_[v, self._slopes_of(name)].astype(np.float32), 2)
+            buf = self._texture([v, self._slopes_of(name)], 2,
+                                self._spare.pop(name, None))
             self._attrs[name] = buf
         return buf
 

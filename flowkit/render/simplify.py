@@ -163,8 +163,8 @@ def _arc(p, starts, stops):
     s = np.zeros(p.shape[0])
     for r in range(starts.size):
         for i in range(starts[r] + 1, stops[r]):
-            d = p[i] - p[i - 1]
-            s[i] = s[i - 1] + math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            d0, d1, d2 = p[i, 0] - p[i - 1, 0], p[i, 1] - p[i - 1, 1], p[i, 2] - p[i - 1, 2]
+            s[i] = s[i - 1] + math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)  # (no temporary array)
     return s
 
 

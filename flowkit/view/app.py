@@ -17,8 +17,9 @@ other flags select (and, the first time, compile) another program.  ``updates`` 
 
 Live seeding (``seeding``, a ``LiveSeeding``: a field, trace options, a rake): the rake is an
 overlay whose handles a left drag moves; when the rake has changed, the next frame traces its
-seeds again and draws the new lines (while dragging too, as long as the last re-trace and redraw
-took at most ``LIVE_SECONDS``; else on release).  Nothing is traced while the rake stays put.
+seeds again and draws the new lines (while dragging too, as long as re-trace and redraw take
+at most ``LIVE_SECONDS``, the median of the last ``LIVE_FRAMES``; else on release).  Nothing
+is traced while the rake stays put.
 """
 
 from __future__ import annotations
@@ -57,7 +58,8 @@ IDLE_POLL = 0.25  # s between style file polls while nothing happens
 WAKE_FRAMES = 3  # frames drawn after an event (ImGui settles hover and active states)
 MARGIN = 8  # px between overlays and the scene's edges
 LEGEND_TEXT_PX = 14  # the legend's text size (times the HiDPI scale), near the panel's
-LIVE_SECONDS = 0.1  # re-trace while dragging the rake when the last re-trace + redraw took <= this
+LIVE_SECONDS = 0.1  # re-trace while dragging the rake while re-trace + redraw take <= this
+LIVE_FRAMES = 5  # ... as the median of the last this many
 
 
 class ViewerError(RuntimeError):
@@ -202,6 +204,7 @@ class Viewer:
         self._handle: str | None = None
         self.show_rake = seeding is not None
         self.reseed_time = self.trace_time = 0.0  # s: last re-trace + redraw, its trace
+        self._reseed_times: list[float] = []  # the last LIVE_FRAMES re-trace + redraw times
         self.retraces = 0
         self._lines_gen = 0  # counts set_lines (part of the scene's key)
         self._wake = WAKE_FRAMES
@@ -563,17 +566,15 @@ class Viewer:
         return lines
 
     def set_lines(self, lines: Lines) -> None:
-        """Show ``lines`` (with the same attributes) instead: a new renderer and picker; the
-        camera, style and overlays stay."""
+        """Show ``lines`` (with the same attributes) instead: the renderer takes their geometry
+        into its buffers (``LineRenderer.set_lines``: its programs, vertex arrays and
+        framebuffers stay), a new picker; the camera, style and overlays stay."""
         problem = unreadable(lines, self.style)
         if problem is not None:
             raise StyleError(problem)
-        old = self.renderer
-        self.renderer = LineRenderer(lines, self.ctx, tolerance=self._tolerance,
-                                     bounds=old.bounds)
-        old.release()
+        self.renderer.set_lines(lines)
         self.lines = lines
-        self.picker = Picker(lines.points)
+        self.picker = Picker(lines.points, start=False)  # built when first asked for
         self.probe, self.probe_pinned = None, False
         self._resolved = (None, self.style)
         self.flags = self._flags(self.style)  # linear attributes may differ
@@ -585,10 +586,17 @@ class Viewer:
         the last re-trace kept up); True when it did."""
         if self.seeding is None or self.rake == self._traced_rake:
             return False
-        if self._handle is not None and self.reseed_time > LIVE_SECONDS:
+        if self._handle is not None and self.live_time() > LIVE_SECONDS:
             return False
         self.retrace()
         return True
+
+    def live_time(self) -> float:
+        """The median of the last ``LIVE_FRAMES`` re-trace + redraw times (s; 0 before the
+        first): a drag traces at every frame while it is at most ``LIVE_SECONDS``, so that one
+        slow frame (another process on the cores) does not stop the lines following."""
+        t = sorted(self._reseed_times)
+        return 0.0 if not t else t[len(t) // 2]
 
     def save_seeds(self, path=None) -> Path:
         """Write the rake's seed spec (what ``flowkit trace --seeds`` and a scene's ``[seeds]
@@ -866,6 +874,7 @@ class Viewer:
             if retraced:  # the new lines drawn, finished: what following the mouse costs
                 self.ctx.finish()
                 self.reseed_time = time.perf_counter() - t_seed
+                self._reseed_times = [*self._reseed_times[1 - LIVE_FRAMES:], self.reseed_time]
             self._update_overlays()
             composed = self.overlays.compose(self.renderer.output())
             screen = self.ctx.detect_framebuffer(0)  # the window's, at its current size

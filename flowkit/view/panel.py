@@ -203,8 +203,11 @@ class Panel:
                                "handle to seed from the rake")
         imgui.text_disabled(v.rake.spec())
         if v.retraces:
+            from .app import LIVE_SECONDS  # (app imports this module)
+
             imgui.text(f"{len(v.lines)} lines; re-trace {1e3 * v.trace_time:.0f} ms, with redraw "
-                       f"{1e3 * v.reseed_time:.0f} ms")
+                       f"{1e3 * v.reseed_time:.0f} ms"
+                       + ("" if v.live_time() <= LIVE_SECONDS else "; slow: traced on release"))
         keys = ", ".join(f"{k} {what}" for k, what in v.SEED_KEYS.values())
         imgui.text_disabled(f"left drag a handle: move it; {keys}")
         imgui.pop_text_wrap_pos()

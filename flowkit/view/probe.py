@@ -26,14 +26,30 @@ CHUNK = 32  # balls queried at a time, front to back
 
 
 class Picker:
-    def __init__(self, points: np.ndarray):
+    def __init__(self, points: np.ndarray, start: bool = True):
+        """``start``: build the index now (in a thread); False: when first asked for (``ready``
+        starts the thread, ``tree`` and ``pick`` wait for it), so that lines replaced before
+        any pick (a rake being dragged) cost no index and leave the CPU to drawing."""
         self.points = np.asarray(points, np.float64)
-        finite = np.all(np.isfinite(self.points), axis=1)
-        self._index = np.flatnonzero(finite)  # tree rows -> vertex numbers
+        self._index: np.ndarray | None = None  # tree rows -> vertex numbers
         self._tree: cKDTree | None = None
         self.build_time: float | None = None  # s
         self._thread = threading.Thread(target=self._build, daemon=True)
-        self._thread.start()
+        self._lock = threading.Lock()
+        if start:
+            self.start()
+
+    def start(self) -> None:
+        """Start building the index (once)."""
+        with self._lock:
+            if self._thread.ident is None:
+                self._finite()
+                self._thread.start()
+
+    def _finite(self) -> np.ndarray:
+        if self._index is None:
+            self._index = np.flatnonzero(np.all(np.isfinite(self.points), axis=1))
+        return self._index
 
     def _build(self) -> None:
         t0 = time.perf_counter()
@@ -42,10 +58,12 @@ class Picker:
 
     @property
     def ready(self) -> bool:
+        self.start()
         return self._tree is not None
 
     @property
     def tree(self) -> cKDTree:
+        self.start()
         self._thread.join()
         return self._tree
 
@@ -55,7 +73,7 @@ class Picker:
         there: of those nearest the eye (within a pick radius in depth), the nearest on screen.
         ``setup``: the camera's (render.camera.CameraSetup) on an image of ``size``; None when
         no vertex is that close."""
-        if self._index.size == 0:
+        if self._finite().size == 0:
             return None
         w, h = size
         m = setup.proj @ setup.view
