@@ -22,7 +22,7 @@ TYPICAL = {
     "flowkit.integrate.kernel._advance_lines": ("the tracing kernel", 12),
     "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 20),
     "flowkit.integrate.pathlines._advance_range": ("the pathline kernel", 6),
-    "flowkit.integrate.rosenbrock._advance_range": ("the Rosenbrock kernel", 8),
+    "flowkit.integrate.rosenbrock._lines": ("the Rosenbrock kernel", 8),
     "flowkit.fields.interp._sample_vectors_range": ("the attribute sampler", 4),
     "flowkit.fields.interp._sample_scalars_range": ("the attribute sampler", 4),
 }

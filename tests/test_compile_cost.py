@@ -87,7 +87,7 @@ def test_attributes_pathlines_rosenbrock_compile_one_specialization_each(tmp_pat
     many = {m: {n: c for n, c in d.items() if c > 1} for m, d in counts.items()}
     assert not any(many.values()), f"compiled more than once: {many}"
     assert counts["flowkit.integrate.pathlines"]["_velocity"] == 1
-    assert counts["flowkit.integrate.rosenbrock"]["_line"] == 1
+    assert counts["flowkit.integrate.rosenbrock"]["_lines"] == 1
     assert counts["flowkit.fields.interp"]["_sample_vectors_range"] == 1
 
 

@@ -101,11 +101,18 @@ def _inv3(M, Mi):
     return True
 
 
-@njit(cache=True)
-def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kexp, fo, io,
-          si, out_p, out_par, out_n):
-    """Trace line l into out_*[l]; its counts and stiffness into si[l] (``ROS_INT_STATE``).
-    ``gam`` is Γ with its diagonal γ; ``kexp`` the controller's q + 1."""
+# without NRT (no reference counting of the arrays handed to the helpers; nothing allocated
+# here: the scratch arrays come from _range)
+@njit(cache=True, nogil=True, _nrt=False)
+def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kexp, fo,
+           io, si, out_p, out_par, out_n, k, kk, coef, cf, ci, y, yt, y1, J, W, Wi, g, u, rhs, qd):
+    """Trace the lines start..stop-1 one after the other into out_*[l]; their counts and
+    stiffness into si[l] (``ROS_INT_STATE``).  ``gam`` is Γ with its diagonal γ; ``kexp`` the
+    controller's q + 1.  One function with the loop over the lines inside, without the GIL, so
+    that threads run ranges side by side (``threads.run_ranges``): a line function called from a
+    range function was compiled, and optimised again inside its caller, twice.  k: f at the
+    stages (row 0: f(y0); row ns: f(y1)), kk: the stage increments, qd: the step's Hermite
+    dense coefficients, the rest the cell and the linear algebra's."""
     Bcap = out_p.shape[1]
     param = io[K.P_PARAM]
     max_steps = io[K.P_MAXSTEPS]
@@ -115,243 +122,234 @@ def _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kex
     lim_dep = fo[K.O_MAXLEN] if param == 0 else fo[K.O_MAXTIME]
     r_ind = K.R_MAXTIME if param == 0 else K.R_MAXLEN
     r_dep = K.R_MAXLEN if param == 0 else K.R_MAXTIME
-    d = dirs[l]
-    out_n[l] = 0
     ns = b.size
     gamma = gam[0, 0]
-    k = np.empty((ns + 1, 4))  # rows 0..ns-1: f at the stages (row 0: f(y0)); row ns: f(y1)
-    kk = np.zeros((ns, 4))  # the stage increments k_i of the method
-    coef = np.empty((8, 3))
-    cf = np.empty(9)
-    ci = np.full(3, -1, np.int64)
-    y = np.empty(4)
-    yt = np.empty(3)
-    y1 = np.empty(4)
-    J = np.empty((3, 3))
-    W = np.empty((3, 3))
-    Wi = np.empty((3, 3))
-    g = np.empty(3)
-    u = np.empty(3)
-    rhs = np.empty(4)
-    qd = np.empty((4, K.QMAX))  # Hermite dense coefficients of the step
+    for l in range(start, stop):
+        d = dirs[l]
+        out_n[l] = 0
+        for a in range(3):
+            ci[a] = -1
+        for i in range(ns):
+            for a in range(4):
+                kk[i, a] = 0.0
+        px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
+        inside = math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)
+        for a in range(3):
+            c = gx if a == 0 else (gy if a == 1 else gz)
+            if period[a] == 0.0 and not (c[0] <= seeds[l, a] <= c[c.size - 1]):
+                inside = False
+        sp = np.nan
+        if inside:
+            _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+            sp = _fc(px, py, pz, param, cf, coef, k, np.int64(0))
+        si[l, I_STATUS] = K.DONE
+        if not (inside and math.isfinite(sp)):
+            si[l, I_REASON] = K.R_SEED
+            continue
+        y[0], y[1], y[2], y[3] = px, py, pz, 0.0
+        tau = 0.0
+        n_acc = 0
+        n_rej = 0
+        last_rej = False
+        stiff = 0
+        n_stiff = 0
+        h = fo[K.O_H0]
+        if h <= 0.0:  # a tenth of the time to cross the cell at the seed's speed
+            wmin = min(1.0 / cf[6], 1.0 / cf[7], 1.0 / cf[8])
+            h = 0.1 * wmin / sp if (param == 0 and sp > 0.0) else 0.1 * wmin
+        h = d * min(h, hmax)
+        _put(out_p, out_par, out_n, l, px, py, pz, 0.0, 0.0)
 
-    px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
-    inside = math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)
-    for a in range(3):
-        c = gx if a == 0 else (gy if a == 1 else gz)
-        if period[a] == 0.0 and not (c[0] <= seeds[l, a] <= c[c.size - 1]):
-            inside = False
-    sp = np.nan
-    if inside:
-        _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
-        sp = _fc(px, py, pz, param, cf, coef, k, np.int64(0))
-    si[l, I_STATUS] = K.DONE
-    if not (inside and math.isfinite(sp)):
-        si[l, I_REASON] = K.R_SEED
-        return
-    y[0], y[1], y[2], y[3] = px, py, pz, 0.0
-    tau = 0.0
-    n_acc = 0
-    n_rej = 0
-    last_rej = False
-    stiff = 0
-    n_stiff = 0
-    h = fo[K.O_H0]
-    if h <= 0.0:  # a tenth of the time to cross the cell at the seed's speed
-        wmin = min(1.0 / cf[6], 1.0 / cf[7], 1.0 / cf[8])
-        h = 0.1 * wmin / sp if (param == 0 and sp > 0.0) else 0.1 * wmin
-    h = d * min(h, hmax)
-    _put(out_p, out_par, out_n, l, px, py, pz, 0.0, 0.0)
-
-    reason = -1
-    while True:
-        if out_n[l] >= Bcap:
-            si[l, I_STATUS] = _OVERFLOW
-            return
-        speed = k[0, 3] if param == 0 else 1.0 / k[0, 3]
-        if not (speed >= stag) or speed == 0.0:
-            reason = K.R_STAG
-            break
-        if n_acc + n_rej >= max_steps:
-            reason = K.R_MAXSTEPS
-            break
-        # on a face moving outwards: next cell, or out of the domain
-        reason = K._onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, ci, cf, coef)
-        if reason >= 0:
-            break
-        hs = h
-        t_exit = K._exit_time(d, y, k, cf)
-        cap = cellfac * t_exit
-        if cap > 0.0 and abs(hs) > cap:
-            hs = d * cap
-        hit_lim = False
-        rem = lim_ind - abs(tau)
-        if abs(hs) >= rem:
-            hs = d * rem
-            hit_lim = True
-
-        # one ROS34PW2 step
-        _rhs_jac(y[0], y[1], y[2], param, coef, cf, J, g, u)
-        for i in range(3):
-            for j in range(3):
-                W[i, j] = (1.0 if i == j else 0.0) - hs * gamma * J[i, j]
-        finite = _inv3(W, Wi)
-        for st in range(ns):
-            if not finite:
+        reason = -1
+        while True:
+            if out_n[l] >= Bcap:
+                si[l, I_STATUS] = _OVERFLOW  # traced again with room for more vertices
                 break
-            if st > 0:
-                for a in range(3):
-                    acc = 0.0
-                    for m in range(st):
-                        acc += alpha[st, m] * kk[m, a]
-                    yt[a] = y[a] + acc
-                _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
-            for a in range(4):  # h f(Y_i) + h J Σ γ_ij k_j (J extended by g as its 4th row)
-                acc = 0.0
-                for m in range(st):
-                    if a < 3:
-                        acc += gam[st, m] * (J[a, 0] * kk[m, 0] + J[a, 1] * kk[m, 1] + J[a, 2] * kk[m, 2])
-                    else:
-                        acc += gam[st, m] * (g[0] * kk[m, 0] + g[1] * kk[m, 1] + g[2] * kk[m, 2])
-                rhs[a] = hs * (k[st, a] + acc)
-            for a in range(3):
-                kk[st, a] = Wi[a, 0] * rhs[0] + Wi[a, 1] * rhs[1] + Wi[a, 2] * rhs[2]
-            kk[st, 3] = rhs[3] + hs * gamma * (g[0] * kk[st, 0] + g[1] * kk[st, 1] + g[2] * kk[st, 2])
-            for a in range(4):
-                if not math.isfinite(kk[st, a]):
-                    finite = False
-        err = 0.0
-        if finite:
-            for a in range(4):
-                acc = 0.0
-                ea = 0.0
-                for m in range(ns):
-                    acc += b[m] * kk[m, a]
-                    ea += (b[m] - bhat[m]) * kk[m, a]
-                y1[a] = y[a] + acc
-                if a < 3:
-                    sc = fo[K.O_ATOL + a] + fo[K.O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
-                    err += (ea / sc) ** 2
-            err = math.sqrt(err / 3.0)
-            finite = math.isfinite(err)
-        if finite:  # f(y1): the next step's f0 and the Hermite end slope
-            _fc(y1[0], y1[1], y1[2], param, cf, coef, k, np.int64(ns))
-            finite = math.isfinite(k[ns, 0] + k[ns, 1] + k[ns, 2] + k[ns, 3])
-        if not finite or err > 1.0:  # NaN data met (a stage, or f(y1)), or an error too large
-            n_rej += 1
-            last_rej = True
-            h, reason = K._retry(hs, err, not finite, hmin, safety, facmin, 1.0 / kexp)
+            speed = k[0, 3] if param == 0 else 1.0 / k[0, 3]
+            if not (speed >= stag) or speed == 0.0:
+                reason = K.R_STAG
+                break
+            if n_acc + n_rej >= max_steps:
+                reason = K.R_MAXSTEPS
+                break
+            # on a face moving outwards: next cell, or out of the domain
+            reason = K._onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, ci, cf, coef)
             if reason >= 0:
                 break
-            continue
-        fac = facmax if err == 0.0 else min(facmax, max(facmin, safety * err ** (-1.0 / kexp)))
-        if last_rej:
-            fac = min(fac, 1.0)
-        hnext = hs * fac
-        if fac >= 1.0 and abs(h) > abs(hnext):
-            hnext = h  # the step was cut by the cell cap or a limit, not by its error
-        last_rej = False
-        hlam = abs(hs) * spectral_radius_bound(J)
-        stiff = stiff_update(stiff, hlam)
-        if hlam > HLAMBDA_STIFF:
-            n_stiff += 1
-
-        # events on the Hermite dense output: leaving the cell, the dependent limit
-        need_face = False
-        for a in range(3):
-            if y1[a] < cf[a] or y1[a] > cf[3 + a]:
-                need_face = True
-        need_dep = abs(y1[3]) >= lim_dep
-        ev = K.EV_NONE
-        th = 1.0
-        ev_axis = -1
-        ev_face = 0.0
-        if need_face or need_dep:
-            for a in range(4):
-                dl = (y1[a] - y[a]) / hs
-                qd[a, 0] = k[0, a]
-                qd[a, 1] = 3.0 * dl - 2.0 * k[0, a] - k[ns, a]
-                qd[a, 2] = -2.0 * dl + k[0, a] + k[ns, a]
-        if need_face:
-            for a in range(3):
-                if y1[a] < cf[a]:
-                    tha = _root(qd, a, _Q, y[a], hs, cf[a], -1.0, 1.0)
-                    face = cf[a]
-                elif y1[a] > cf[3 + a]:
-                    tha = _root(qd, a, _Q, y[a], hs, cf[3 + a], 1.0, 1.0)
-                    face = cf[3 + a]
-                else:
-                    continue
-                if ev == K.EV_NONE or tha < th:
-                    th = tha
-                    ev_axis = a
-                    ev_face = face
-                    ev = K.EV_FACE
-        if need_dep:
-            thd = _root(qd, 3, _Q, y[3], hs, d * lim_dep, d, 1.0)
-            if ev == K.EV_NONE or thd < th:
-                th = thd
-                ev = K.EV_DEPLIM
-        n_acc += 1
-        if ev == K.EV_NONE:
-            for a in range(4):
-                y[a] = y1[a]
-                k[0, a] = k[ns, a]
-            tau = d * lim_ind if hit_lim else tau + hs
-        else:
-            y0x, y0y, y0z, y0d = y[0], y[1], y[2], y[3]
-            y[0] = _dense(qd, 0, _Q, y0x, hs, th)
-            y[1] = _dense(qd, 1, _Q, y0y, hs, th)
-            y[2] = _dense(qd, 2, _Q, y0z, hs, th)
-            y[3] = d * lim_dep if ev == K.EV_DEPLIM else _dense(qd, 3, _Q, y0d, hs, th)
-            tau = tau + th * hs
+            hs = h
+            t_exit = K._exit_time(d, y, k, cf)
+            cap = cellfac * t_exit
+            if cap > 0.0 and abs(hs) > cap:
+                hs = d * cap
             hit_lim = False
-            if ev == K.EV_FACE:
-                y[ev_axis] = ev_face
-                # typed: numba's SSA form gives ev_axis its literal -1 on one path
-                res = K._through_face(np.int64(ev_axis), ev_face == cf[3 + ev_axis], y, param, gx,
-                                      gy, gz, period, vec, ci, cf, coef, k)
-                if res == 1:
-                    reason = K.R_OUT
-                elif res == 2:
-                    reason = K.R_NAN
+            rem = lim_ind - abs(tau)
+            if abs(hs) >= rem:
+                hs = d * rem
+                hit_lim = True
+
+            # one ROS34PW2 step
+            _rhs_jac(y[0], y[1], y[2], param, coef, cf, J, g, u)
+            for i in range(3):
+                for j in range(3):
+                    W[i, j] = (1.0 if i == j else 0.0) - hs * gamma * J[i, j]
+            finite = _inv3(W, Wi)
+            for st in range(ns):
+                if not finite:
+                    break
+                if st > 0:
+                    for a in range(3):
+                        acc = 0.0
+                        for m in range(st):
+                            acc += alpha[st, m] * kk[m, a]
+                        yt[a] = y[a] + acc
+                    _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
+                for a in range(4):  # h f(Y_i) + h J Σ γ_ij k_j (J extended by g as its 4th row)
+                    acc = 0.0
+                    for m in range(st):
+                        if a < 3:
+                            acc += gam[st, m] * (J[a, 0] * kk[m, 0] + J[a, 1] * kk[m, 1] + J[a, 2] * kk[m, 2])
+                        else:
+                            acc += gam[st, m] * (g[0] * kk[m, 0] + g[1] * kk[m, 1] + g[2] * kk[m, 2])
+                    rhs[a] = hs * (k[st, a] + acc)
+                for a in range(3):
+                    kk[st, a] = Wi[a, 0] * rhs[0] + Wi[a, 1] * rhs[1] + Wi[a, 2] * rhs[2]
+                kk[st, 3] = rhs[3] + hs * gamma * (g[0] * kk[st, 0] + g[1] * kk[st, 1] + g[2] * kk[st, 2])
+                for a in range(4):
+                    if not math.isfinite(kk[st, a]):
+                        finite = False
+            err = 0.0
+            if finite:
+                for a in range(4):
+                    acc = 0.0
+                    ea = 0.0
+                    for m in range(ns):
+                        acc += b[m] * kk[m, a]
+                        ea += (b[m] - bhat[m]) * kk[m, a]
+                    y1[a] = y[a] + acc
+                    if a < 3:
+                        sc = fo[K.O_ATOL + a] + fo[K.O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
+                        err += (ea / sc) ** 2
+                err = math.sqrt(err / 3.0)
+                finite = math.isfinite(err)
+            if finite:  # f(y1): the next step's f0 and the Hermite end slope
+                _fc(y1[0], y1[1], y1[2], param, cf, coef, k, np.int64(ns))
+                finite = math.isfinite(k[ns, 0] + k[ns, 1] + k[ns, 2] + k[ns, 3])
+            if not finite or err > 1.0:  # NaN data met (a stage, or f(y1)), or an error too large
+                n_rej += 1
+                last_rej = True
+                h, reason = K._retry(hs, err, not finite, hmin, safety, facmin, 1.0 / kexp)
+                if reason >= 0:
+                    break
+                continue
+            fac = facmax if err == 0.0 else min(facmax, max(facmin, safety * err ** (-1.0 / kexp)))
+            if last_rej:
+                fac = min(fac, 1.0)
+            hnext = hs * fac
+            if fac >= 1.0 and abs(h) > abs(hnext):
+                hnext = h  # the step was cut by the cell cap or a limit, not by its error
+            last_rej = False
+            hlam = abs(hs) * spectral_radius_bound(J)
+            stiff = stiff_update(stiff, hlam)
+            if hlam > HLAMBDA_STIFF:
+                n_stiff += 1
+
+            # events on the Hermite dense output: leaving the cell, the dependent limit
+            need_face = False
+            for a in range(3):
+                if y1[a] < cf[a] or y1[a] > cf[3 + a]:
+                    need_face = True
+            need_dep = abs(y1[3]) >= lim_dep
+            ev = K.EV_NONE
+            th = 1.0
+            ev_axis = -1
+            ev_face = 0.0
+            if need_face or need_dep:
+                for a in range(4):
+                    dl = (y1[a] - y[a]) / hs
+                    qd[a, 0] = k[0, a]
+                    qd[a, 1] = 3.0 * dl - 2.0 * k[0, a] - k[ns, a]
+                    qd[a, 2] = -2.0 * dl + k[0, a] + k[ns, a]
+            if need_face:
+                for a in range(3):
+                    if y1[a] < cf[a]:
+                        tha = _root(qd, a, _Q, y[a], hs, cf[a], -1.0, 1.0)
+                        face = cf[a]
+                    elif y1[a] > cf[3 + a]:
+                        tha = _root(qd, a, _Q, y[a], hs, cf[3 + a], 1.0, 1.0)
+                        face = cf[3 + a]
+                    else:
+                        continue
+                    if ev == K.EV_NONE or tha < th:
+                        th = tha
+                        ev_axis = a
+                        ev_face = face
+                        ev = K.EV_FACE
+            if need_dep:
+                thd = _root(qd, 3, _Q, y[3], hs, d * lim_dep, d, 1.0)
+                if ev == K.EV_NONE or thd < th:
+                    th = thd
+                    ev = K.EV_DEPLIM
+            n_acc += 1
+            if ev == K.EV_NONE:
+                for a in range(4):
+                    y[a] = y1[a]
+                    k[0, a] = k[ns, a]
+                tau = d * lim_ind if hit_lim else tau + hs
             else:
-                reason = r_dep
-        if hit_lim:
-            reason = r_ind
-        h = d * min(abs(hnext), hmax)
-        if th * hs != 0.0:
-            t_out = tau if param == 0 else y[3]
-            s_out = y[3] if param == 0 else tau
-            if out_n[l] >= Bcap:
-                si[l, I_STATUS] = _OVERFLOW
-                return
-            _put(out_p, out_par, out_n, l, y[0], y[1], y[2], t_out, s_out)
-        if reason >= 0:
-            break
-    si[l, I_REASON] = reason
-    si[l, I_NACC] = n_acc
-    si[l, I_NREJ] = n_rej
-    si[l, I_STIFF] = stiff
-    si[l, I_NSTIFF] = n_stiff
+                y0x, y0y, y0z, y0d = y[0], y[1], y[2], y[3]
+                y[0] = _dense(qd, 0, _Q, y0x, hs, th)
+                y[1] = _dense(qd, 1, _Q, y0y, hs, th)
+                y[2] = _dense(qd, 2, _Q, y0z, hs, th)
+                y[3] = d * lim_dep if ev == K.EV_DEPLIM else _dense(qd, 3, _Q, y0d, hs, th)
+                tau = tau + th * hs
+                hit_lim = False
+                if ev == K.EV_FACE:
+                    y[ev_axis] = ev_face
+                    # typed: numba's SSA form gives ev_axis its literal -1 on one path
+                    res = K._through_face(np.int64(ev_axis), ev_face == cf[3 + ev_axis], y, param, gx,
+                                          gy, gz, period, vec, ci, cf, coef, k)
+                    if res == 1:
+                        reason = K.R_OUT
+                    elif res == 2:
+                        reason = K.R_NAN
+                else:
+                    reason = r_dep
+            if hit_lim:
+                reason = r_ind
+            h = d * min(abs(hnext), hmax)
+            if th * hs != 0.0:
+                t_out = tau if param == 0 else y[3]
+                s_out = y[3] if param == 0 else tau
+                if out_n[l] >= Bcap:
+                    si[l, I_STATUS] = _OVERFLOW
+                    break
+                _put(out_p, out_par, out_n, l, y[0], y[1], y[2], t_out, s_out)
+            if reason >= 0:
+                break
+        if si[l, I_STATUS] == _OVERFLOW:
+            continue
+        si[l, I_REASON] = reason
+        si[l, I_NACC] = n_acc
+        si[l, I_NREJ] = n_rej
+        si[l, I_STIFF] = stiff
+        si[l, I_NSTIFF] = n_stiff
 
 
-@njit(cache=True, nogil=True)
-def _advance_range(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat,
-                   kexp, fo, io, si, out_p, out_par, out_n):
-    """Lines start..stop-1, one after the other; without the GIL, so that threads run ranges
-    side by side (``threads.run_ranges``)."""
-    for l in range(start, stop):
-        _line(l, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kexp, fo, io,
-              si, out_p, out_par, out_n)
+def _range(start, stop, *args):
+    """``_lines`` with scratch arrays of its own (one set per range)."""
+    ns = args[10].size  # b
+    _lines(start, stop, *args, np.empty((ns + 1, 4)), np.empty((ns, 4)), np.empty((8, 3)),
+           np.empty(9), np.empty(3, np.int64), np.empty(4), np.empty(3), np.empty(4),
+           np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty(3), np.empty(3),
+           np.empty(4), np.empty((4, K.QMAX)))
 
 
 def _advance(seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kexp, fo, io,
              si, out_p, out_par, out_n):
-    """Every line, on numba's thread count of Python threads: a prange loop around ``_line``
+    """Every line, on numba's thread count of Python threads: a prange loop around the line loop
     compiled it twice (its index is int64 where numba types the loop, uint64 where it lowers
     it) and built a parallel gufunc, seconds of compilation on every fresh machine."""
-    run_ranges(_advance_range, seeds.shape[0], seeds, dirs, gx, gy, gz, period, inv, vec, alpha,
+    run_ranges(_range, seeds.shape[0], seeds, dirs, gx, gy, gz, period, inv, vec, alpha,
                gam, b, bhat, kexp, fo, io, si, out_p, out_par, out_n)
 
 
