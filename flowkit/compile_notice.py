@@ -21,7 +21,7 @@ DELAY = 2.0
 TYPICAL = {
     "flowkit.integrate.kernel._advance_lines": ("the tracing kernel", 12),
     "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 20),
-    "flowkit.integrate.pathlines._advance_range": ("the pathline kernel", 6),
+    "flowkit.integrate.pathlines._lines": ("the pathline kernel", 5),
     "flowkit.integrate.rosenbrock._lines": ("the Rosenbrock kernel", 8),
     "flowkit.fields.interp._sample_vectors_range": ("the attribute sampler", 4),
     "flowkit.fields.interp._sample_scalars_range": ("the attribute sampler", 4),

@@ -143,27 +143,20 @@ def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
     return True
 
 
-@njit(cache=True, nogil=True)
-def _advance_range(start, stop, active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
-                   t0, t1, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n):
+# One function with the loop over the lines inside: a line function called from a range
+# function was compiled, and optimised again inside its caller, twice (seconds on a fresh
+# machine).  Without NRT (no reference counting in the step loop, as kernel._run_line; nothing
+# allocated here: the scratch arrays come from _range) and without the GIL, so that threads run
+# ranges side by side (threads.run_ranges).
+@njit(cache=True, nogil=True, _nrt=False)
+def _lines(start, stop, active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
+           mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, k, Q, yt, y,
+           y1):
     """``_advance`` for the slots start..stop-1 (lines ``active[start:stop]``), one after the
-    other; without the GIL, so that threads run ranges side by side (``threads.run_ranges``)."""
+    other.  Scratch of one line, reused by the next: k (the stages' velocity and speed), Q (the
+    dense output's coefficients), yt (a stage point), y and y1 (position and arc length at the
+    step's start and end)."""
     B = out_p.shape[1]
-    k = np.empty((mi[M_STAGES], 4))  # scratch of one line, reused by the next
-    Q = np.empty((4, mp.shape[1]))
-    yt = np.empty(3)
-    y = np.empty(4)  # position and arc length
-    y1 = np.empty(4)
-    for n in range(start, stop):
-        _run_line(active[n], n, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
-                  mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt,
-                  y, y1)
-
-
-# without NRT (no reference counting in the step loop), as kernel._run_line
-@njit(cache=True, _nrt=False)
-def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1, mc, ma,
-              mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, B, k, Q, yt, y, y1):
     S, n_err, fs, kexp = mi[M_STAGES], mi[M_NERR], mi[M_FSAL], mi[M_KEXP]
     adaptive, has_e2 = mi[M_ADAPTIVE] != 0, mi[M_HASE2] != 0
     q = mp.shape[1]
@@ -171,166 +164,175 @@ def _run_line(l, slot, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1,
     hmin, hmax, stag, maxlen = fo[O_HMIN], fo[O_HMAX], fo[O_STAG], fo[O_MAXLEN]
     max_steps = io[P_MAXSTEPS]
     expo1 = 1.0 / kexp - 0.75 * beta
-    out_n[slot] = 0
-    tlim = release[l] + d * fo[O_MAXTIME]
+    for slot in range(start, stop):
+        l = active[slot]
+        out_n[slot] = 0
+        tlim = release[l] + d * fo[O_MAXTIME]
 
-    if si[l, I_STATUS] == NEW:
-        px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
-        inside = True
-        for a in range(3):
-            c = gx if a == 0 else (gy if a == 1 else gz)
-            if period[a] == 0.0 and not (c[0] <= seeds[l, a] <= c[c.size - 1]):
-                inside = False
-        t = release[l]
-        # constants to the compiled (not inlined) helpers typed: a literal 0 compiles one more
-        # copy of the helper per value (as in kernel.py)
-        if not (inside and _velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k,
-                                     np.int64(0))):
-            si[l, I_STATUS] = DONE
-            si[l, I_REASON] = R_SEED
-            return
-        y[0], y[1], y[2], y[3] = px, py, pz, 0.0
-        n_acc = 0
-        n_rej = 0
-        last_rej = False
-        errp = 1e-4
-        errpb = errp ** beta
-        h = fo[O_H0]
-        if h <= 0.0:
-            h0, d1 = _initial_guess(fo, y, k)
-            h0 = min(h0, hmax, max(abs(goal - t), 1e-300))
+        if si[l, I_STATUS] == NEW:
+            px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
+            inside = True
             for a in range(3):
-                yt[a] = y[a] + d * h0 * k[0, a]
-            ok = _velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv,
-                           v0, v1, t0, t1, k, np.int64(1))
-            h = _initial_step(fo, y, k, h0, d1, kexp, ok)
-        h = d * min(h, hmax)
-        si[l, I_STATUS] = RUNNING
-        out_p[slot, 0, 0], out_p[slot, 0, 1], out_p[slot, 0, 2] = px, py, pz
-        out_t[slot, 0] = t
-        out_s[slot, 0] = 0.0
-        out_n[slot] = 1
-    else:
-        t, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, I_LASTREJ, beta)
+                c = gx if a == 0 else (gy if a == 1 else gz)
+                if period[a] == 0.0 and not (c[0] <= seeds[l, a] <= c[c.size - 1]):
+                    inside = False
+            t = release[l]
+            # constants to the compiled (not inlined) helpers typed: a literal 0 compiles one more
+            # copy of the helper per value (as in kernel.py)
+            if not (inside and _velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k,
+                                         np.int64(0))):
+                si[l, I_STATUS] = DONE
+                si[l, I_REASON] = R_SEED
+                continue
+            y[0], y[1], y[2], y[3] = px, py, pz, 0.0
+            n_acc = 0
+            n_rej = 0
+            last_rej = False
+            errp = 1e-4
+            errpb = errp ** beta
+            h = fo[O_H0]
+            if h <= 0.0:
+                h0, d1 = _initial_guess(fo, y, k)
+                h0 = min(h0, hmax, max(abs(goal - t), 1e-300))
+                for a in range(3):
+                    yt[a] = y[a] + d * h0 * k[0, a]
+                ok = _velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv,
+                               v0, v1, t0, t1, k, np.int64(1))
+                h = _initial_step(fo, y, k, h0, d1, kexp, ok)
+            h = d * min(h, hmax)
+            si[l, I_STATUS] = RUNNING
+            out_p[slot, 0, 0], out_p[slot, 0, 1], out_p[slot, 0, 2] = px, py, pz
+            out_t[slot, 0] = t
+            out_s[slot, 0] = 0.0
+            out_n[slot] = 1
+        else:
+            t, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, I_LASTREJ, beta)
 
-    reason = -1
-    while out_n[slot] < B and t != goal:
-        if n_acc + n_rej >= max_steps:
-            reason = R_MAXSTEPS
-            break
-        if stag > 0.0 and not (k[0, 3] >= stag):
-            reason = R_STAG
-            break
-        out = False  # standing on a bounded end and moving outwards
-        for a in range(3):
-            c = gx if a == 0 else (gy if a == 1 else gz)
-            mv = d * k[0, a]
-            if period[a] == 0.0 and ((y[a] <= c[0] and mv < 0.0) or (y[a] >= c[c.size - 1] and mv > 0.0)):
-                out = True
-        if out:
-            reason = R_OUT
-            break
-        # step size: the controller's, clipped to the interval end or the time limit
-        hs = h
-        rem_goal = d * (goal - t)
-        rem_lim = d * (tlim - t)
-        rem = min(rem_goal, rem_lim)
-        hit = abs(hs) >= rem
-        if hit:
-            hs = d * rem
-        for st in range(1, n_err):
-            _stage_point(ma, k, st, y, hs, yt)
-            if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
-                             v0, v1, t0, t1, k, st):
-                k[st, 0] = np.nan
-        y1[3], err, finite = _step_end(y, k, hs, mb, me, me2, n_err, adaptive, has_e2, fo, y1)
-        if finite and err <= 1.0:  # stages up to f(y1) and those only the dense output uses
-            for st in range(n_err, S):
+        reason = -1
+        while out_n[slot] < B and t != goal:
+            if n_acc + n_rej >= max_steps:
+                reason = R_MAXSTEPS
+                break
+            if stag > 0.0 and not (k[0, 3] >= stag):
+                reason = R_STAG
+                break
+            out = False  # standing on a bounded end and moving outwards
+            for a in range(3):
+                c = gx if a == 0 else (gy if a == 1 else gz)
+                mv = d * k[0, a]
+                if period[a] == 0.0 and ((y[a] <= c[0] and mv < 0.0) or (y[a] >= c[c.size - 1] and mv > 0.0)):
+                    out = True
+            if out:
+                reason = R_OUT
+                break
+            # step size: the controller's, clipped to the interval end or the time limit
+            hs = h
+            rem_goal = d * (goal - t)
+            rem_lim = d * (tlim - t)
+            rem = min(rem_goal, rem_lim)
+            hit = abs(hs) >= rem
+            if hit:
+                hs = d * rem
+            for st in range(1, n_err):
                 _stage_point(ma, k, st, y, hs, yt)
                 if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
                                  v0, v1, t0, t1, k, st):
-                    finite = False
-        if not (finite and err <= 1.0):  # NaN data met by a stage, or an error too large
-            n_rej += 1
-            last_rej = True
-            h, reason = _retry(hs, err, not finite or not err > 1.0, hmin, safety, facmin, expo1)
+                    k[st, 0] = np.nan
+            y1[3], err, finite = _step_end(y, k, hs, mb, me, me2, n_err, adaptive, has_e2, fo, y1)
+            if finite and err <= 1.0:  # stages up to f(y1) and those only the dense output uses
+                for st in range(n_err, S):
+                    _stage_point(ma, k, st, y, hs, yt)
+                    if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
+                                     v0, v1, t0, t1, k, st):
+                        finite = False
+            if not (finite and err <= 1.0):  # NaN data met by a stage, or an error too large
+                n_rej += 1
+                last_rej = True
+                h, reason = _retry(hs, err, not finite or not err > 1.0, hmin, safety, facmin, expo1)
+                if reason >= 0:
+                    break
+                continue
+            # accepted
+            hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax,
+                                            beta, expo1)
+            hnext = d * min(abs(hnext), hmax)
+            last_rej = False
+            n_acc += 1
+            # events on the dense output: a bounded end of the domain, the arc-length limit
+            for a in range(4):
+                for j in range(q):
+                    acc = 0.0
+                    for m in range(S):
+                        acc += mp[m, j] * k[m, a]
+                    Q[a, j] = acc
+            th = 1.0
+            ev_axis = -1
+            ev_face = 0.0
+            for a in range(3):
+                c = gx if a == 0 else (gy if a == 1 else gz)
+                if period[a] != 0.0:
+                    continue
+                if y1[a] < c[0]:
+                    tha = _root(Q, a, q, y[a], hs, c[0], -1.0, 1.0)
+                    face = c[0]
+                elif y1[a] > c[c.size - 1]:
+                    tha = _root(Q, a, q, y[a], hs, c[c.size - 1], 1.0, 1.0)
+                    face = c[c.size - 1]
+                else:
+                    continue
+                if tha <= th:
+                    th = tha
+                    ev_axis = a
+                    ev_face = face
+            ev_len = False
+            if y1[3] >= maxlen:
+                thl = _root(Q, np.int64(3), q, y[3], hs, maxlen, 1.0, 1.0)
+                if thl < th or ev_axis < 0:
+                    th = thl
+                    ev_len = True
+                    ev_axis = -1
+            if ev_axis >= 0 or ev_len:
+                for a in range(4):
+                    y[a] = _dense(Q, a, q, y[a], hs, th)
+                if ev_len:
+                    y[3] = maxlen
+                    reason = R_MAXLEN
+                else:
+                    y[ev_axis] = ev_face
+                    reason = R_OUT
+                t = t + th * hs
+            else:
+                for a in range(4):
+                    y[a] = y1[a]
+                    k[0, a] = k[fs, a]
+                if hit:
+                    if rem_lim <= rem_goal:
+                        t = tlim
+                        reason = R_MAXTIME
+                    else:
+                        t = goal
+                else:
+                    t = t + hs
+            h = hnext
+            n = out_n[slot]
+            out_p[slot, n, 0], out_p[slot, n, 1], out_p[slot, n, 2] = y[0], y[1], y[2]
+            out_t[slot, n] = t
+            out_s[slot, n] = y[3]
+            out_n[slot] = n + 1
             if reason >= 0:
                 break
-            continue
-        # accepted
-        hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax,
-                                        beta, expo1)
-        hnext = d * min(abs(hnext), hmax)
-        last_rej = False
-        n_acc += 1
-        # events on the dense output: a bounded end of the domain, the arc-length limit
-        for a in range(4):
-            for j in range(q):
-                acc = 0.0
-                for m in range(S):
-                    acc += mp[m, j] * k[m, a]
-                Q[a, j] = acc
-        th = 1.0
-        ev_axis = -1
-        ev_face = 0.0
-        for a in range(3):
-            c = gx if a == 0 else (gy if a == 1 else gz)
-            if period[a] != 0.0:
-                continue
-            if y1[a] < c[0]:
-                tha = _root(Q, a, q, y[a], hs, c[0], -1.0, 1.0)
-                face = c[0]
-            elif y1[a] > c[c.size - 1]:
-                tha = _root(Q, a, q, y[a], hs, c[c.size - 1], 1.0, 1.0)
-                face = c[c.size - 1]
-            else:
-                continue
-            if tha <= th:
-                th = tha
-                ev_axis = a
-                ev_face = face
-        ev_len = False
-        if y1[3] >= maxlen:
-            thl = _root(Q, np.int64(3), q, y[3], hs, maxlen, 1.0, 1.0)
-            if thl < th or ev_axis < 0:
-                th = thl
-                ev_len = True
-                ev_axis = -1
-        if ev_axis >= 0 or ev_len:
-            for a in range(4):
-                y[a] = _dense(Q, a, q, y[a], hs, th)
-            if ev_len:
-                y[3] = maxlen
-                reason = R_MAXLEN
-            else:
-                y[ev_axis] = ev_face
-                reason = R_OUT
-            t = t + th * hs
-        else:
-            for a in range(4):
-                y[a] = y1[a]
-                k[0, a] = k[fs, a]
-            if hit:
-                if rem_lim <= rem_goal:
-                    t = tlim
-                    reason = R_MAXTIME
-                else:
-                    t = goal
-            else:
-                t = t + hs
-        h = hnext
-        n = out_n[slot]
-        out_p[slot, n, 0], out_p[slot, n, 1], out_p[slot, n, 2] = y[0], y[1], y[2]
-        out_t[slot, n] = t
-        out_s[slot, n] = y[3]
-        out_n[slot] = n + 1
-        if reason >= 0:
-            break
 
-    _save_state(sf, si, l, y, k, t, h, errp, n_acc, n_rej, last_rej, I_LASTREJ)
-    if reason >= 0:
-        si[l, I_STATUS] = DONE
-        si[l, I_REASON] = reason
+        _save_state(sf, si, l, y, k, t, h, errp, n_acc, n_rej, last_rej, I_LASTREJ)
+        if reason >= 0:
+            si[l, I_STATUS] = DONE
+            si[l, I_REASON] = reason
+
+
+def _range(start, stop, *args):
+    """``_lines`` with scratch arrays of its own (one set per range)."""
+    mp, mi = args[19], args[20]
+    _lines(start, stop, *args, np.empty((mi[M_STAGES], 4)), np.empty((4, mp.shape[1])),
+           np.empty(3), np.empty(4), np.empty(4))
 
 
 def _advance(active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
@@ -338,7 +340,7 @@ def _advance(active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t
     """Advance the lines ``active`` to ``goal`` (or their end) inside one snapshot interval, or
     until each has written B vertices; the lines go to numba's thread count of Python threads
     (``threads.run_ranges``): a prange loop around the kernel cost seconds more to compile."""
-    run_ranges(_advance_range, active.size, active, seeds, release, d, goal, gx, gy, gz, period,
+    run_ranges(_range, active.size, active, seeds, release, d, goal, gx, gy, gz, period,
                inv, v0, v1, t0, t1, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s,
                out_n)
 
