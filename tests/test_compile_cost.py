@@ -60,7 +60,7 @@ import flowkit
 from flowkit import datasets
 from flowkit.fields import interp
 from flowkit.fields.analytic import ABCFlow
-from flowkit.integrate import pathlines as P, rosenbrock as R, seeds
+from flowkit.integrate import kernel as K, lanes, pathlines as P, rosenbrock as R, seeds, stiffness
 f = datasets.hotroom()
 s = seeds.line((1, 1, 1), (9, 1, 9), 8)
 f.sample(s)
@@ -68,19 +68,22 @@ f.sample_scalar("T", s)
 flowkit.trace(f, s, max_length=3, method="ros34pw2", direction="both")
 series = ABCFlow().to_series([0.0, 1.0], shape=12, bounds=[[0, 2 * np.pi]] * 3)
 P.pathlines(series, s[:, [0, 0, 2]] * 0.5, max_time=0.5, attributes=["speed"])
+flowkit.trace(f, s, max_length=3, method="rk4", step=0.1, cell_aware=False)  # the lock-step
+flowkit.trace(f, s, max_length=3, cell_aware=False, rtol=1e-6)
 print(json.dumps({m.__name__: {n: len(d.signatures) for n, d in vars(m).items()
                                if isinstance(d, numba.core.registry.CPUDispatcher)
                                and d.py_func.__module__ == m.__name__}
-                  for m in (interp, P, R)}))
+                  for m in (interp, K, P, R, lanes, stiffness)}))
 """
 
 
-def test_attributes_pathlines_rosenbrock_compile_one_specialization_each(tmp_path):
+def test_attributes_pathlines_rosenbrock_lanes_compile_one_specialization_each(tmp_path):
     """A literal argument or a prange index compiles a helper once more per value or type (each
     seconds on a fresh machine): with an empty cache (a helper loaded inside its caller's cached
     code is not counted), every compiled function of the samplers, the pathline and the
-    Rosenbrock integrators has one signature at most."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    Rosenbrock integrators, the lock-step and the kernel helpers they share has one signature
+    at most."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), FLOWKIT_LOCKSTEP_WAIT="1")
     out = subprocess.run([sys.executable, "-c", OPTIONS_CODE], env=env, capture_output=True,
                          text=True, timeout=900, check=True).stdout
     counts = json.loads(out.strip().splitlines()[-1])
@@ -89,6 +92,8 @@ def test_attributes_pathlines_rosenbrock_compile_one_specialization_each(tmp_pat
     assert counts["flowkit.integrate.pathlines"]["_velocity"] == 1
     assert counts["flowkit.integrate.rosenbrock"]["_lines"] == 1
     assert counts["flowkit.fields.interp"]["_sample_vectors_range"] == 1
+    assert counts["flowkit.integrate.lanes"]["lockstep"] == 1
+    assert counts["flowkit.integrate.kernel"]["_dense"] == 1  # shared by every driver
 
 
 def test_no_helper_uses_numbas_ir_inlining():

@@ -731,7 +731,7 @@ def _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, i_lastrej
 def _store(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, hk, n_cross, kfail, kwait,
            cf, ci):
     """The line's whole state into its rows, for ``_load_state`` and the cell restore."""
-    _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, I_LASTREJ)
+    _save_state(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, np.int64(I_LASTREJ))
     sf[l, S_HK] = hk
     si[l, I_NCROSS], si[l, I_KFAIL], si[l, I_KWAIT] = n_cross, kfail, kwait
     for a in range(3):
@@ -838,7 +838,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                                                   k, coef, cf, ci, y, yt, dlo, dhi):
             continue
         # (a new line starts from the state _start wrote, as a suspended line resumes)
-        tau, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, I_LASTREJ, beta)
+        tau, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, np.int64(I_LASTREJ), beta)
         hk = sf[l, S_HK]
         n_cross, kfail, kwait = si[l, I_NCROSS], si[l, I_KFAIL], si[l, I_KWAIT]
         # the line's cell as it was: cell-aware, the one it steps in; plain on a periodic grid,

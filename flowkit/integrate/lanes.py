@@ -353,12 +353,12 @@ def _error(g, n_err, mw, has_e2, fo, y, y1, hs, k, e5, e3, tmp, err, fin):
         e5[g, w] = 0.0
         e3[g, w] = 0.0
     for a in range(3):
-        _dot(g, n_err, mw, 1, k, a, tmp)
+        _dot(g, n_err, mw, np.int64(1), k, a, tmp)
         for w in range(W):
             sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[g, a, w]), abs(y1[g, a, w]))
             e5[g, w] += (tmp[g, w] / sc) ** 2
         if has_e2 != 0:
-            _dot(g, n_err, mw, 2, k, a, tmp)
+            _dot(g, n_err, mw, np.int64(2), k, a, tmp)
             for w in range(W):
                 sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[g, a, w]), abs(y1[g, a, w]))
                 e3[g, w] += (tmp[g, w] / sc) ** 2
@@ -395,7 +395,14 @@ def _hand_back(g, w, l, r_ind, y, tau, h, errp, k, n_acc, n_rej, lrej, stiff, mo
         si[l, I_STATUS], si[l, I_REASON] = DONE, r_ind
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
+# Only the prange loop runs in parallel: numba's other parallel rewrites turned every np.zeros
+# below into a parallel loop of its own and fused them, a third of the kernel's compile time
+# for allocations (the lines and the warm speed are the same)
+_PRANGE_ONLY = {"prange": True, "numpy": False, "fusion": False, "comprehension": False,
+                "reduction": False, "inplace_binop": False, "setitem": False, "stencil": False}
+
+
+@njit(cache=True, parallel=_PRANGE_ONLY, error_model="numpy")
 def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi, fo, io, sf, si,
              out_p, out_par, out_n):
     """Advance the started lines ``active`` in groups of W as far as the lock-step goes; their
@@ -453,7 +460,7 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
     kp = np.zeros((G, W), np.int8)  # 1: the lane's stage point is strictly inside its cell
     # on a periodic axis a cell found again may differ from the cached one in the last bit of
     # its faces (the rounding of the wrap): only then the cache is followed
-    cached = 0
+    cached = np.int64(0)
     for a in range(3):
         cached |= int(period[a] > 0.0)
     strides = np.array([ny * nz * 3, nz * 3, 3])
@@ -462,7 +469,12 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
     nb = np.array([_rounds(gx.size), _rounds(gy.size), _rounds(gz.size)])
     slot = np.zeros((G, W), np.int64)  # the line in each lane (its slot in active), -1: none
     n_act = active.size
-    for g in prange(G):
+    # the helpers' arguments typed (jit.helper): a literal, or prange's unsigned index in the
+    # parallel loop next to the signed one numba types first, compiles each helper once more
+    Z, I1, I2, I3, I4 = np.int64(0), np.int64(1), np.int64(2), np.int64(3), np.int64(4)
+    no = np.bool_(False)
+    for gu in prange(G):
+        g = np.int64(gu)
         nxt, end = g * CHUNK, min((g + 1) * CHUNK, n_act)  # the group's lines, in turn
         for w in range(W):
             slot[g, w] = -1
@@ -525,12 +537,12 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
             # the stage points, a prefetch of their cells, then the evaluations, up to f(y1)
             for st in range(1, fs + 1):
                 if st == fs and y1_first != 0:
-                    _sums(g, n_err, mw, 0, y, hs, k, y1, 4)
+                    _sums(g, n_err, mw, Z, y, hs, k, y1, I4)
                     for a in range(3):
                         for w in range(W):
                             yt[g, a, w] = y1[g, a, w]
                 else:
-                    _sums(g, st, ma, st, y, hs, k, yt, 3)
+                    _sums(g, st, ma, st, y, hs, k, yt, I3)
                 if st == st_stiff:
                     for a in range(3):
                         for w in range(W):
@@ -542,11 +554,11 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
                             x = yt[g, a, w]
                             inside &= int(cb[g, a, w] < x) & int(x < cb[g, 3 + a, w])
                         kp[g, w] = inside
-                _locate(g, yt, 0, gx, period[0], inv[0], nb[0], strides[0], cached, kp,
+                _locate(g, yt, Z, gx, period[0], inv[0], nb[0], strides[0], cached, kp,
                         cn, cb)
-                _locate(g, yt, 1, gy, period[1], inv[1], nb[1], strides[1], cached, kp,
+                _locate(g, yt, I1, gy, period[1], inv[1], nb[1], strides[1], cached, kp,
                         cn, cb)
-                _locate(g, yt, 2, gz, period[2], inv[2], nb[2], strides[2], cached, kp,
+                _locate(g, yt, I2, gz, period[2], inv[2], nb[2], strides[2], cached, kp,
                         cn, cb)
                 # the scalar kernel's rule: a stage at the c of the one before meets its cells
                 if mc[st] != mc[st - 1]:
@@ -554,9 +566,9 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
                 _evaluate(g, st, yt, cn, cb, k, ok, gx, gy, gz, rx, ry, rz, flat, ny, nz, param,
                           cached)
                 if cached != 0 and st == n_err - 1:
-                    _copy_cells(g, act, 0, cn, cb, en, eb)
+                    _copy_cells(g, act, Z, cn, cb, en, eb)
             if y1_first == 0:
-                _sums(g, n_err, mw, 0, y, hs, k, y1, 4)
+                _sums(g, n_err, mw, Z, y, hs, k, y1, I4)
             # act: 1 take the step (no event in it), 2 reject it (error above the tolerance),
             # 0 stop the lane before it (the scalar kernel takes it from there)
             for w in range(W):  # branch-free: vector code
@@ -576,7 +588,8 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
             # the step size control (a loop of scalar code: its powers), kernel's controller
             for w in range(W):
                 if act[g, w] == 2:
-                    hn[g, w], why = _retry(hs[g, w], err[g, w], 0, hmin, safety, facmin, expo1)
+                    hn[g, w], why = _retry(hs[g, w], err[g, w], no, hmin, safety, facmin,
+                                           expo1)
                     if why >= 0:
                         act[g, w] = 0  # below the minimum step: the scalar kernel ends the line
                 elif act[g, w] == 1:
@@ -590,12 +603,12 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
                     hnext = h[g, w]
                     if adaptive != 0:
                         hnext, errp[g, w], errpb[g, w] = _next_step(
-                            err[g, w], errp[g, w], errpb[g, w], hs[g, w], h[g, w], lrej[g, w],
+                            err[g, w], errp[g, w], errpb[g, w], hs[g, w], h[g, w], lrej[g, w] != 0,
                             safety, facmin, facmax, beta, expo1)
                     hn[g, w] = d[g, w] * min(abs(hnext), hmax)
             if cached != 0:  # a rejected step's cell as at its error test, then the step's cell
-                _copy_cells(g, act, 2, en, eb, cn, cb)
-                _copy_cells(g, act, 3, cn, cb, kn, kb)
+                _copy_cells(g, act, I2, en, eb, cn, cb)
+                _copy_cells(g, act, I3, cn, cb, kn, kb)
             # commit (branch-free: vector code), then emit the committed vertices
             for w in range(W):
                 a_w = act[g, w]

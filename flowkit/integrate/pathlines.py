@@ -206,7 +206,7 @@ def _lines(start, stop, active, seeds, release, d, goal, gx, gy, gz, period, inv
             out_s[slot, 0] = 0.0
             out_n[slot] = 1
         else:
-            t, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, I_LASTREJ, beta)
+            t, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, np.int64(I_LASTREJ), beta)
 
         reason = -1
         while out_n[slot] < B and t != goal:
@@ -322,7 +322,7 @@ def _lines(start, stop, active, seeds, release, d, goal, gx, gy, gz, period, inv
             if reason >= 0:
                 break
 
-        _save_state(sf, si, l, y, k, t, h, errp, n_acc, n_rej, last_rej, I_LASTREJ)
+        _save_state(sf, si, l, y, k, t, h, errp, n_acc, n_rej, last_rej, np.int64(I_LASTREJ))
         if reason >= 0:
             si[l, I_STATUS] = DONE
             si[l, I_REASON] = reason

@@ -118,6 +118,8 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
     max_steps = io[K.P_MAXSTEPS]
     safety, facmin, facmax = fo[K.O_SAFETY], fo[K.O_FACMIN], fo[K.O_FACMAX]
     hmin, hmax, cellfac, stag = fo[K.O_HMIN], fo[K.O_HMAX], fo[K.O_CELLFAC], fo[K.O_STAG]
+    q = np.int64(_Q)  # the helpers' arguments typed (jit.helper): a literal compiles a copy
+    C0, C1, C2, C3 = np.int64(0), np.int64(1), np.int64(2), np.int64(3)
     lim_ind = fo[K.O_MAXTIME] if param == 0 else fo[K.O_MAXLEN]
     lim_dep = fo[K.O_MAXLEN] if param == 0 else fo[K.O_MAXTIME]
     r_ind = K.R_MAXTIME if param == 0 else K.R_MAXLEN
@@ -151,7 +153,7 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
         n_acc = 0
         n_rej = 0
         last_rej = False
-        stiff = 0
+        stiff = np.int64(0)
         n_stiff = 0
         h = fo[K.O_H0]
         if h <= 0.0:  # a tenth of the time to cross the cell at the seed's speed
@@ -272,10 +274,10 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
             if need_face:
                 for a in range(3):
                     if y1[a] < cf[a]:
-                        tha = _root(qd, a, _Q, y[a], hs, cf[a], -1.0, 1.0)
+                        tha = _root(qd, a, q, y[a], hs, cf[a], -1.0, 1.0)
                         face = cf[a]
                     elif y1[a] > cf[3 + a]:
-                        tha = _root(qd, a, _Q, y[a], hs, cf[3 + a], 1.0, 1.0)
+                        tha = _root(qd, a, q, y[a], hs, cf[3 + a], 1.0, 1.0)
                         face = cf[3 + a]
                     else:
                         continue
@@ -285,7 +287,7 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
                         ev_face = face
                         ev = K.EV_FACE
             if need_dep:
-                thd = _root(qd, 3, _Q, y[3], hs, d * lim_dep, d, 1.0)
+                thd = _root(qd, C3, q, y[3], hs, d * lim_dep, d, 1.0)
                 if ev == K.EV_NONE or thd < th:
                     th = thd
                     ev = K.EV_DEPLIM
@@ -297,10 +299,10 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
                 tau = d * lim_ind if hit_lim else tau + hs
             else:
                 y0x, y0y, y0z, y0d = y[0], y[1], y[2], y[3]
-                y[0] = _dense(qd, 0, _Q, y0x, hs, th)
-                y[1] = _dense(qd, 1, _Q, y0y, hs, th)
-                y[2] = _dense(qd, 2, _Q, y0z, hs, th)
-                y[3] = d * lim_dep if ev == K.EV_DEPLIM else _dense(qd, 3, _Q, y0d, hs, th)
+                y[0] = _dense(qd, C0, q, y0x, hs, th)
+                y[1] = _dense(qd, C1, q, y0y, hs, th)
+                y[2] = _dense(qd, C2, q, y0z, hs, th)
+                y[3] = d * lim_dep if ev == K.EV_DEPLIM else _dense(qd, C3, q, y0d, hs, th)
                 tau = tau + th * hs
                 hit_lim = False
                 if ev == K.EV_FACE:
