@@ -3,8 +3,9 @@
 A kernel's machine code depends on the types of its arguments, never on the data: every Field
 holds float64 C-contiguous arrays, so a short trace on a small stand-in field compiles the very
 specializations that the same options compile on a user's data, and numba's disk cache keeps
-them for every later process (where that cache lives: docs/integrator.md, "Cold start").  The
-stand-in grid is uniform, so options that run the lock-step on a uniform grid compile it too.
+them for every later process (where that cache lives: docs/integrator.md, "Where the compiled
+code lives").  The stand-in grid is uniform, so options that run the lock-step on a uniform grid
+compile it too.
 
 ``WHAT`` names: a set of options from ``OPTION_SETS`` ("default" is what ``flowkit trace`` and
 ``flowkit.trace`` run with no option named; "all" is every set), or a scene file, whose trace

@@ -145,7 +145,7 @@ def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
 
 # One function with the loop over the lines inside: a line function called from a range
 # function was compiled, and optimised again inside its caller, twice (seconds on a fresh
-# machine).  Without NRT (no reference counting in the step loop, as kernel._run_line; nothing
+# machine).  Without NRT (no reference counting in the step loop, as kernel._advance_lines; nothing
 # allocated here: the scratch arrays come from _range) and without the GIL, so that threads run
 # ranges side by side (threads.run_ranges).
 @njit(cache=True, nogil=True, _nrt=False)
