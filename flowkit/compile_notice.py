@@ -19,12 +19,12 @@ LOG = logging.getLogger("flowkit.compile")
 DELAY = 2.0
 # qualified name of a kernel -> (what it is, typical cold compile seconds)
 TYPICAL = {
-    "flowkit.integrate.kernel._advance_lines": ("the tracing kernel", 12),
-    "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 20),
-    "flowkit.integrate.pathlines._lines": ("the pathline kernel", 5),
-    "flowkit.integrate.rosenbrock._lines": ("the Rosenbrock kernel", 8),
-    "flowkit.fields.interp._sample_vectors_range": ("the attribute sampler", 4),
-    "flowkit.fields.interp._sample_scalars_range": ("the attribute sampler", 4),
+    "flowkit.integrate.kernel._advance_lines": ("the tracing kernel", 10),
+    "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 18),
+    "flowkit.integrate.pathlines._lines": ("the pathline kernel", 4),
+    "flowkit.integrate.rosenbrock._lines": ("the Rosenbrock kernel", 4),
+    "flowkit.fields.interp._sample_vectors_range": ("the attribute sampler", 1),
+    "flowkit.fields.interp._sample_scalars_range": ("the attribute sampler", 1),
 }
 
 
