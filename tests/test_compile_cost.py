@@ -108,3 +108,20 @@ def test_no_helper_uses_numbas_ir_inlining():
     ir_inline = re.compile(r"jit\([^)]*\binline\s*=")
     users = [str(p.relative_to(root)) for p in root.rglob("*.py") if ir_inline.search(p.read_text())]
     assert not users, f"numba IR inlining in {users}: use flowkit.jit.inline"
+
+
+def test_import_leaves_scipy_integrate_unloaded():
+    """Every process pays flowkit's import (each CLI call, test subprocess, Dask worker):
+    scipy.integrate's package import is ~0.4 s of it, and the method registry needs only its
+    DOP853 coefficient table (the numbers, checked against scipy's own module here)."""
+    code = ("import sys, flowkit\n"
+            "from flowkit.integrate.methods import get_method\n"
+            "m = get_method('dop853')\n"
+            "loaded = 'scipy.integrate' in sys.modules\n"
+            "from scipy.integrate._ivp import dop853_coefficients as dc\n"
+            "import numpy as np\n"
+            "same = all(np.array_equal(x, y) for x, y in ((m.c, dc.C), (m.a, dc.A)))\n"
+            "print(loaded, same)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out == ["False", "True"]

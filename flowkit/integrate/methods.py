@@ -37,9 +37,10 @@ A tableau (``Method``) holds what the kernels need to run it without special cas
 
 from __future__ import annotations
 
-import importlib
+import importlib.util
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -540,10 +541,24 @@ def _euler() -> Method:
                                description="explicit Euler, Hermite dense output")
 
 
-def _dop853() -> Method:
-    # Hairer's DOP853 coefficients as shipped with scipy (the same numbers as the Fortran code)
-    from scipy.integrate._ivp import dop853_coefficients as dc
+def _dop853_coefficients():
+    """Hairer's DOP853 coefficients as shipped with scipy (the same numbers as the Fortran code;
+    a module of numpy arrays), read without importing scipy.integrate, whose package import
+    would add ~0.4 s to every start of flowkit (the registry is built at import)."""
+    spec = importlib.util.find_spec("scipy")  # (finds the package without importing it)
+    path = Path(spec.origin).parent / "integrate" / "_ivp" / "dop853_coefficients.py"
+    if not path.is_file():  # another layout: the import, at its cost
+        from scipy.integrate._ivp import dop853_coefficients
 
+        return dop853_coefficients
+    loader = importlib.util.spec_from_file_location("flowkit._dop853_coefficients", path)
+    module = importlib.util.module_from_spec(loader)
+    loader.loader.exec_module(module)
+    return module
+
+
+def _dop853() -> Method:
+    dc = _dop853_coefficients()
     s = dc.N_STAGES_EXTENDED
     c = np.array(dc.C, float)
     a = np.array(dc.A, float)
