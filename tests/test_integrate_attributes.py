@@ -5,6 +5,7 @@ import pytest
 
 from flowkit import Field, Grid, trace
 from flowkit.fields.analytic import ABCFlow, SolidBodyRotation
+from flowkit.fields.curl import gradient
 from flowkit.integrate import attributes
 
 OMEGA = 0.7
@@ -65,13 +66,13 @@ def test_periodic_curl_of_abc_is_the_field_itself():
 def test_no_curl_unless_a_vorticity_attribute_is_requested(monkeypatch):
     f = _rotation()
     calls = []
-    real = attributes.curl
+    real = attributes.vorticity_at
 
-    def counting(field):
+    def counting(field, points):
         calls.append(1)
-        return real(field)
+        return real(field, points)
 
-    monkeypatch.setattr(attributes, "curl", counting)
+    monkeypatch.setattr(attributes, "vorticity_at", counting)
     trace(f, [1.0, 0.0, 0.0], max_time=1.0, attributes=("speed", "velocity", "time", "T"))
     trace(f, [1.0, 0.0, 0.0], max_time=1.0)
     assert calls == []
@@ -166,7 +167,10 @@ def test_curl_fallbacks_use_a_two_point_difference_only_between_two_nans():
     c = np.array([0.0, 0.1, 0.25, 0.3, 0.5, 0.6])
     f = c**2
     f[[0, 3, 5]] = np.nan  # node 1: NaN at 0 and 3 -> forward 2-point only from 1 to 2
-    d = attributes._deriv(f, c, 0.0, 0, np.isfinite(f))
+    g = Grid.from_axes(c, [0.0, 1.0], [0.0, 1.0])
+    v = np.zeros(g.shape + (3,))
+    v[..., 1] = f[:, None, None]  # curl_z = d v_y / dx
+    d = attributes.curl(Field(g, v))[:, 0, 0, 2]
     assert d[1] == pytest.approx((f[2] - f[1]) / (c[2] - c[1]), rel=1e-14)
     assert d[2] == pytest.approx((f[2] - f[1]) / (c[2] - c[1]), rel=1e-14)  # backward 2-point
     assert np.isnan(d[4])  # NaN on both sides
@@ -198,3 +202,43 @@ def test_vorticity_of_a_line_passing_a_nan_hole_is_finite():
     lines = trace(nan_face_field(), NAN_FACE_SEEDS, attributes=("vorticity", "vorticity_magnitude"))
     assert np.isfinite(lines.point_data["vorticity"]).all()
     np.testing.assert_allclose(lines.point_data["vorticity_magnitude"], 0.0, atol=1e-12)
+
+
+def _np_curl(f):
+    """The curl from ``curl.gradient`` (np.gradient, wrapped on periodic axes) of each component
+    along each axis: what the compiled node curl must give bit for bit on finite data."""
+    g, v = f.grid, f.vector
+    d = [[gradient(v[..., c], g.axes[a], g.period[a], a) for a in range(3)] for c in range(3)]
+    return np.stack([d[2][1] - d[1][2], d[0][2] - d[2][0], d[1][0] - d[0][1]], axis=-1)
+
+
+SPACINGS = {  # np.gradient takes its uniform formulas only where every spacing is bitwise equal
+    "uniform": Grid.regular((0, 0, 0), 0.25, (9, 7, 5)),
+    "linspace": Grid.from_axes(*[np.linspace(0, 6, 13)] * 3),
+    "rectilinear": Grid.from_axes(np.r_[0, 0.3, 0.5, 1.2, 1.3, 2.0], np.linspace(0, 3, 9),
+                                  np.linspace(0, 2, 7) ** 1.5),
+    "two nodes": Grid.from_axes(np.r_[0, 0.3, 0.5, 1.2], [0.0, 0.7], np.linspace(0, 2, 5)),
+    "periodic": Grid.from_axes(np.linspace(0, 2 * np.pi, 17), np.linspace(0, 2 * np.pi, 12,
+                               endpoint=False), np.linspace(0, 2, 6) ** 1.5,
+                               periodic=(True, True, False), period=(2 * np.pi, 2 * np.pi, 0)),
+}
+
+
+@pytest.mark.parametrize("kind", SPACINGS)
+def test_node_curl_is_np_gradients_bit_for_bit_and_sampled_at_points_as_the_grid(kind):
+    f = ABCFlow().to_field(grid=SPACINGS[kind])
+    w = attributes.curl(f)
+    assert np.array_equal(w, _np_curl(f))
+    # at points, from the corners of their cells only: the whole grid's curl sampled, exactly,
+    # NaN holes, nodes and points outside included
+    v = f.vector.copy()
+    v[1, 1:3, 2] = np.nan
+    v[-1, 0, 0, 1] = np.inf
+    holed = Field(f.grid, v)
+    lo, hi = f.grid.origin, np.array([c[-1] for c in f.grid.axes])
+    pts = lo + (hi - lo) * np.random.default_rng(3).uniform(-0.05, 1.05, (4000, 3))
+    pts[:8] = np.array(np.meshgrid(*[c[:2] for c in f.grid.axes])).reshape(3, -1).T
+    for field in (f, holed):
+        want = attributes.sample_grid_vectors(field, attributes.curl(field), pts)
+        assert np.array_equal(attributes.vorticity_at(field, pts), want, equal_nan=True)
+    assert np.isnan(want).any() and np.isfinite(want).any()

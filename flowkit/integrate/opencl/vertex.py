@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...fields import curl as _curl
 from .. import attributes as _attributes
 
 # attributes with code in the kernel, in the order of the template's outputs; components each
@@ -75,11 +76,11 @@ class Plan:
 
 
 def stencils(grid, block: int = 256) -> tuple[np.ndarray, np.ndarray, int]:
-    """The derivative stencil of every node on every axis, as ``attributes.curl`` applies it.
+    """The derivative stencil of every node on every axis, as ``fields.curl`` applies it.
 
     Returns (nodes (sum n, K) int32, weights (sum n, K) float64, K): row ``offset(axis) + i``
     lists the nodes (along that axis; -1 = unused) whose values enter d/dx_axis at node i, and
-    their weights.  Taken from ``attributes.gradient`` itself, applied to unit vectors (the weights)
+    their weights.  Taken from ``fields.curl.gradient`` itself, applied to unit vectors (the weights)
     and to NaN unit vectors (which nodes enter, also with weight 0, so that NaN data poisons the
     same derivatives as on the host).
     """
@@ -92,8 +93,8 @@ def stencils(grid, block: int = 256) -> tuple[np.ndarray, np.ndarray, int]:
             m = min(n, lo + block) - lo
             e = np.zeros((n, m))
             e[lo + np.arange(m), np.arange(m)] = 1.0
-            w = _attributes.gradient(e, c, float(grid.period[ax]), 0)
-            hit = np.isnan(_attributes.gradient(np.where(e > 0, np.nan, 0.0), c,
+            w = _curl.gradient(e, c, float(grid.period[ax]), 0)
+            hit = np.isnan(_curl.gradient(np.where(e > 0, np.nan, 0.0), c,
                                               float(grid.period[ax]), 0))
             r, q = np.nonzero(hit)
             rows_all.append(base + r)
@@ -114,8 +115,8 @@ def stencils(grid, block: int = 256) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 def fallbacks(grid) -> tuple[np.ndarray, np.ndarray]:
-    """``attributes.fallback_stencils`` of the three axes, rows as in :func:`stencils`:
+    """``fields.curl.fallback_stencils`` of the three axes, rows as in :func:`stencils`:
     (nodes (sum n, 4, 3) int32, weights (sum n, 4, 3))."""
-    parts = [_attributes.fallback_stencils(grid.axes[ax], grid.period[ax]) for ax in range(3)]
+    parts = [_curl.fallback_stencils(grid.axes[ax], grid.period[ax]) for ax in range(3)]
     return (np.ascontiguousarray(np.concatenate([p[0] for p in parts])),
             np.ascontiguousarray(np.concatenate([p[1] for p in parts])))
