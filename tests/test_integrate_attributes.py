@@ -198,3 +198,29 @@ def test_vorticity_of_a_line_passing_a_nan_hole_is_finite():
     lines = trace(nan_face_field(), NAN_FACE_SEEDS, attributes=("vorticity", "vorticity_magnitude"))
     assert np.isfinite(lines.point_data["vorticity"]).all()
     np.testing.assert_allclose(lines.point_data["vorticity_magnitude"], 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("grid", [None, RECTILINEAR], ids=["uniform", "rectilinear"])
+def test_vector_and_scalar_sampled_together_are_the_separate_samples_bit_for_bit(grid):
+    """Speed and a scalar (the viewer's heated room: speed, T) are sampled in one pass that
+    locates each vertex once: the same values, to the bit, as a pass for each, and the status
+    NAN_CELL where either's cell has a NaN corner."""
+    from flowkit.fields import interp
+
+    f = _rotation(grid)
+    f.vector[2:4, 3:5, 1:3] = np.nan  # NaN cells of the vector, others of the scalar
+    f.scalars["T"][6:8, 5:7, 2:4] = np.nan
+    pts = np.random.default_rng(3).uniform(-3.5, 3.5, (5000, 3)) * [1, 1, 0.4]  # some outside
+    pts[:50] = f.grid.node_points().reshape(-1, 3)[:50]  # on nodes, faces: corners of weight 0
+    v, sv = f.sample(pts)
+    T, sT = f.sample_scalar("T", pts)
+    vw, Tw, sw = f.sample_with("T", pts)
+    assert vw.tobytes() == v.tobytes() and Tw.tobytes() == T.tobytes()
+    assert {interp.INSIDE, interp.OUTSIDE, interp.NAN_CELL} <= set(sv) | set(sT)
+    np.testing.assert_array_equal(sw, np.where(sv == interp.OUTSIDE, sv, np.maximum(sv, sT)))
+    names = ("T", "speed", "p2")
+    f.scalars["p2"] = f.scalars["T"] * 2.0  # a second scalar: sampled alone
+    got = attributes.compute(f, names, pts, None, None, None)
+    assert got["speed"].tobytes() == np.linalg.norm(v, axis=1).tobytes()
+    assert got["T"].tobytes() == T.tobytes()
+    assert got["p2"].tobytes() == f.sample_scalar("p2", pts)[0].tobytes()

@@ -222,6 +222,11 @@ def compute(field: Field, names, points, t, s, seeds_per_vertex) -> dict[str, np
     """Attributes ``names`` at the vertices ``points`` (N, 3)."""
     check(field, names)
     cache: dict[str, np.ndarray] = {}
+    scalars: dict[str, np.ndarray] = {}  # scalar fields sampled with the velocity
+    first = next((n for n in names if n not in ATTRIBUTES), None)
+    if first is not None and any(ATTRIBUTES.get(n) == ("velocity",) for n in names):
+        # both in one pass: each vertex located once
+        cache["velocity"], scalars[first], _ = field.sample_with(first, points)
 
     def velocity():
         if "velocity" not in cache:
@@ -250,5 +255,5 @@ def compute(field: Field, names, points, t, s, seeds_per_vertex) -> dict[str, np
         elif n == "distance_to_seed":
             out[n] = np.linalg.norm(points - seeds_per_vertex, axis=1)
         else:
-            out[n] = field.sample_scalar(n, points)[0]
+            out[n] = scalars[n] if n in scalars else field.sample_scalar(n, points)[0]
     return out
