@@ -224,3 +224,16 @@ def test_vector_and_scalar_sampled_together_are_the_separate_samples_bit_for_bit
     assert got["speed"].tobytes() == np.linalg.norm(v, axis=1).tobytes()
     assert got["T"].tobytes() == T.tobytes()
     assert got["p2"].tobytes() == f.sample_scalar("p2", pts)[0].tobytes()
+
+
+def test_norm_is_numpys_to_the_bit():
+    """Speed, vorticity magnitude and distance to the seed: ``attributes.norm``, the bits of
+    np.linalg.norm(axis=1) (the same sum in the same order) at a sixth of its cost."""
+    rng = np.random.default_rng(5)
+    v = rng.standard_normal((200_000, 3)) * 10.0 ** rng.uniform(-200, 200, (200_000, 1))
+    v[:6] = [[np.nan, 0, 1], [np.inf, 1, 0], [-0.0, -0.0, 0.0], [1e308, 1e308, 0],
+             [-np.inf, np.nan, 0], [5e-324, 0, 0]]
+    with np.errstate(over="ignore"):  # squares beyond the largest float, as numpy's
+        for a in (v, v.astype(np.float32)):
+            got, want = attributes.norm(a), np.linalg.norm(a, axis=1)
+            assert got.dtype == want.dtype and got.tobytes() == want.tobytes()
