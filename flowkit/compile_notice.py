@@ -23,8 +23,7 @@ TYPICAL = {
     "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 18),
     "flowkit.integrate.pathlines._lines": ("the pathline kernel", 4),
     "flowkit.integrate.rosenbrock._lines": ("the Rosenbrock kernel", 4),
-    "flowkit.fields.interp._sample_vectors_range": ("the attribute sampler", 1),
-    "flowkit.fields.interp._sample_scalars_range": ("the attribute sampler", 1),
+    "flowkit.fields.interp._sample_range": ("the attribute sampler", 1),
 }
 
 

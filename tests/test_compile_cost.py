@@ -91,7 +91,7 @@ def test_attributes_pathlines_rosenbrock_lanes_compile_one_specialization_each(t
     assert not any(many.values()), f"compiled more than once: {many}"
     assert counts["flowkit.integrate.pathlines"]["_velocity"] == 1
     assert counts["flowkit.integrate.rosenbrock"]["_lines"] == 1
-    assert counts["flowkit.fields.interp"]["_sample_vectors_range"] == 1
+    assert counts["flowkit.fields.interp"]["_sample_range"] == 1
     assert counts["flowkit.integrate.lanes"]["lockstep"] == 1
     assert counts["flowkit.integrate.kernel"]["_dense"] == 1  # shared by every driver
 

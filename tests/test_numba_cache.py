@@ -82,7 +82,7 @@ def test_read_only_install_without_a_home_caches_in_the_temp_dir(tmp_path):
     assert p.returncode == 0, p.stderr[-3000:]
     where = Path(p.stdout.strip().splitlines()[-1])
     assert where.is_relative_to(tmp / f"flowkit-numba-{os.getuid()}"), where
-    assert list(tmp.rglob("interp.*sample_scalars*.nbi"))  # the code was stored there
+    assert list(tmp.rglob("interp.*_sample_range*.nbi"))  # the code was stored there
     assert not list(site.rglob("*.nb?"))
 
 

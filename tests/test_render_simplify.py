@@ -392,3 +392,15 @@ def test_world_unit_width_maps_do_not_redo_the_level_of_detail_each_frame(monkey
         assert r.n_drawn > 0
     assert 1 <= len(calls) <= 2, calls
     assert len(r._lods) <= R.LOD_KEPT
+
+
+def test_finite_rows_is_numpys_all_of_isfinite():
+    """``lines.finite_rows`` (the runs, the picker's index, the bounds) is
+    np.all(np.isfinite(p), axis=1) for a non-finite value in any column."""
+    from flowkit.lines import finite_rows
+
+    p = np.random.default_rng(2).standard_normal((3000, 3))
+    bad = np.random.default_rng(3).integers(0, 3000, (300, 2))
+    p[bad[:, 0], bad[:, 1] % 3] = np.resize([np.nan, np.inf, -np.inf], 300)
+    np.testing.assert_array_equal(finite_rows(p), np.all(np.isfinite(p), axis=1))
+    assert not finite_rows(p).all() and finite_rows(p).any()

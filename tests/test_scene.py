@@ -102,7 +102,7 @@ def spy(monkeypatch):
     """Counts calls into the integrator, field loading, the curl and scalar sampling."""
     calls = {"trace": [], "load": 0, "curl": 0, "scalar": []}
     real_trace, real_load = trace_mod.trace, plan_mod.load_field
-    real_curl, real_scalar = attributes_mod.curl, Field.sample_scalar
+    real_curl, real_scalar, real_with = attributes_mod.curl, Field.sample_scalar, Field.sample_with
 
     def trace(field, seeds, options=None, **kw):
         calls["trace"].append(tuple(options.attributes))
@@ -120,10 +120,15 @@ def spy(monkeypatch):
         calls["scalar"].append(name)
         return real_scalar(self, name, points)
 
+    def sample_with(self, name, points):  # the vector and a scalar in one pass
+        calls["scalar"].append(name)
+        return real_with(self, name, points)
+
     monkeypatch.setattr(trace_mod, "trace", trace)
     monkeypatch.setattr(plan_mod, "load_field", load)
     monkeypatch.setattr(attributes_mod, "curl", curl)
     monkeypatch.setattr(Field, "sample_scalar", sample_scalar)
+    monkeypatch.setattr(Field, "sample_with", sample_with)
     return calls
 
 

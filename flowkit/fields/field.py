@@ -77,6 +77,18 @@ class Field:
         interp.sample_scalars(*self.grid.kernel_args(), arr, pts, out, status)
         return out, status
 
+    def sample_with(self, name: str, points) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The vector and scalar ``name`` at points (n, 3), each point located once: (vectors
+        (n, 3), values (n,), status (n,) int8: NAN_CELL where either's cell has a NaN corner);
+        the values ``sample`` and ``sample_scalar`` give."""
+        arr = self.scalar(name)
+        pts = _points(points)
+        out = np.empty((pts.shape[0], 3))
+        out_s = np.empty(pts.shape[0])
+        status = np.empty(pts.shape[0], np.int8)
+        interp.sample(*self.grid.kernel_args(), self.vector, arr, pts, out, out_s, status)
+        return out, out_s, status
+
     def scalar(self, name: str) -> np.ndarray:
         try:
             return self.scalars[name]

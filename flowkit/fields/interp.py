@@ -1,8 +1,8 @@
 """Trilinear interpolation on uniform/rectilinear grids, as numba functions.
 
 The scalar functions (``locate_axis``, ``locate``, ``trilinear_vector``, ``trilinear_scalar``) are
-meant to be called from other numba kernels; ``sample_vectors``/``sample_scalars`` are the
-vectorised entry points, called from Python.  Grid arguments are ``Grid.kernel_args()``:
+meant to be called from other numba kernels; ``sample`` (``sample_vectors``, ``sample_scalars``) is
+the vectorised entry point, called from Python.  Grid arguments are ``Grid.kernel_args()``:
 ``(x, y, z, period[3], inv_spacing[3])`` with ``inv_spacing`` all zero for rectilinear grids.
 
 Status codes of a sample: INSIDE, OUTSIDE (never extrapolated), NAN_CELL (a corner is NaN).
@@ -126,56 +126,56 @@ def trilinear_scalar(arr, i, j, k, tx, ty, tz):
     return out, False
 
 
-# The vectorised samplers: a nogil loop over a range of points, run on ranges by Python threads
+# The vectorised sampler: a nogil loop over a range of points, run on ranges by Python threads
 # (integrate/threads.py, as the tracing kernel is) instead of a prange loop, whose parallel
-# gufunc cost seconds of compilation on every fresh machine.
-@njit(cache=True, no_cpython_wrapper=True)
-def _locate_point(gx, gy, gz, period, inv, px, py, pz):
-    """``locate``, compiled once for both samplers (inlined, it was compiled in each)."""
-    return locate(gx, gy, gz, period, inv, px, py, pz)
-
-
+# gufunc cost seconds of compilation on every fresh machine.  One kernel samples a vector, a
+# scalar or both (the attributes speed and T: each point located once), so one compiles.
 @njit(cache=True, nogil=True)
-def _sample_vectors_range(start, stop, gx, gy, gz, period, inv, vec, pts, out, status):
+def _sample_range(start, stop, gx, gy, gz, period, inv, vec, arr, pts, out, out_s, status):
+    with_vec, with_arr = vec.shape[0] > 0, arr.shape[0] > 0
     for n in range(start, stop):
-        i, j, k, tx, ty, tz, ok = _locate_point(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1],
-                                                pts[n, 2])
+        i, j, k, tx, ty, tz, ok = locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1], pts[n, 2])
         if not ok:
-            out[n, 0] = np.nan
-            out[n, 1] = np.nan
-            out[n, 2] = np.nan
+            if with_vec:
+                out[n, 0] = np.nan
+                out[n, 1] = np.nan
+                out[n, 2] = np.nan
+            if with_arr:
+                out_s[n] = np.nan
             status[n] = OUTSIDE
             continue
-        u, v, w, bad = trilinear_vector(vec, i, j, k, tx, ty, tz)
-        out[n, 0] = u
-        out[n, 1] = v
-        out[n, 2] = w
+        bad = False
+        if with_vec:
+            u, v, w, bad = trilinear_vector(vec, i, j, k, tx, ty, tz)
+            out[n, 0] = u
+            out[n, 1] = v
+            out[n, 2] = w
+        if with_arr:
+            val, bad_s = trilinear_scalar(arr, i, j, k, tx, ty, tz)
+            out_s[n] = val
+            bad = bad or bad_s
         status[n] = NAN_CELL if bad else INSIDE
 
 
-@njit(cache=True, nogil=True)
-def _sample_scalars_range(start, stop, gx, gy, gz, period, inv, arr, pts, out, status):
-    for n in range(start, stop):
-        i, j, k, tx, ty, tz, ok = _locate_point(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1],
-                                                pts[n, 2])
-        if not ok:
-            out[n] = np.nan
-            status[n] = OUTSIDE
-            continue
-        val, bad = trilinear_scalar(arr, i, j, k, tx, ty, tz)
-        out[n] = val
-        status[n] = NAN_CELL if bad else INSIDE
+# "not sampled": empty arrays of the kernel's argument types (one signature for every use)
+_NO_VEC, _NO_ARR = np.zeros((0, 1, 1, 3)), np.zeros((0, 1, 1))
+_NO_OUT, _NO_OUT_S = np.zeros((0, 3)), np.zeros(0)
+
+
+def sample(gx, gy, gz, period, inv, vec, arr, pts, out, out_s, status):
+    """Trilinear vectors of ``vec`` (nx, ny, nz, 3) into ``out`` (n, 3) and values of ``arr``
+    (nx, ny, nz) into ``out_s`` (n,) at ``pts`` (n, 3), each point located once, and
+    ``status`` (n,) int8: INSIDE, OUTSIDE (NaN) or NAN_CELL (a NaN corner counts, for either:
+    that one NaN)."""
+    run_ranges(_sample_range, pts.shape[0], gx, gy, gz, period, inv, vec, arr, pts, out, out_s,
+               status)
 
 
 def sample_vectors(gx, gy, gz, period, inv, vec, pts, out, status):
-    """Trilinear vectors of ``vec`` (nx, ny, nz, 3) at ``pts`` (n, 3) into ``out`` (n, 3) and
-    ``status`` (n,) int8: INSIDE, OUTSIDE (NaN) or NAN_CELL (NaN)."""
-    run_ranges(_sample_vectors_range, pts.shape[0], gx, gy, gz, period, inv, vec, pts, out,
-               status)
+    """``sample`` of a vector alone."""
+    sample(gx, gy, gz, period, inv, vec, _NO_ARR, pts, out, _NO_OUT_S, status)
 
 
 def sample_scalars(gx, gy, gz, period, inv, arr, pts, out, status):
-    """Trilinear values of ``arr`` (nx, ny, nz) at ``pts`` (n, 3) into ``out`` (n,) and
-    ``status``, as ``sample_vectors``."""
-    run_ranges(_sample_scalars_range, pts.shape[0], gx, gy, gz, period, inv, arr, pts, out,
-               status)
+    """``sample`` of a scalar alone."""
+    sample(gx, gy, gz, period, inv, _NO_VEC, arr, pts, _NO_OUT, out, status)

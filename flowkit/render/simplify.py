@@ -37,7 +37,7 @@ import math
 import numba
 import numpy as np
 
-from ..lines import Lines
+from ..lines import Lines, finite_rows
 from .style import ColorMap, Style, WidthMap
 
 RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
@@ -49,7 +49,7 @@ MAX_SPAN = 4096  # longer pieces are split at their middle (which shares its par
 
 def runs(lines: Lines) -> tuple[np.ndarray, np.ndarray]:
     """(starts, stops) int64 of the runs of >= 2 consecutive finite points of each line."""
-    finite = np.all(np.isfinite(lines.points), axis=1)
+    finite = finite_rows(lines.points)
     line_of = lines.line_index()
     i = np.flatnonzero(finite)
     if i.size == 0:

@@ -756,14 +756,14 @@ class Viewer:
         h, w = image.shape[:2]
         self.overlays.set(name, image, place(w, h))
 
-    def _update_overlays(self) -> None:
+    def _update_overlays(self, retraced: bool = False) -> None:
         sw, sh = self.scene_size
         setup = self.camera.setup(self.renderer.bounds, sw, sh)
         view = np.round(setup.view[:3, :3], 4)
         self._overlay("axes", view.tobytes() if self.show_axes else None,
                       lambda: axes_image(view), lambda w, h: (MARGIN, sh - h - MARGIN))
         self._update_legend()
-        self._update_probe(setup)
+        self._update_probe(setup, retraced)
         self._update_rake(setup)
 
     def _update_rake(self, setup) -> None:
@@ -813,12 +813,20 @@ class Viewer:
             x0, y0, x1, y1 = box
             self.overlays.set("legend", image[y0:y1, x0:x1], (x0, y0))
 
-    def _update_probe(self, setup) -> None:
+    def _update_probe(self, setup, retraced: bool = False) -> None:
+        """``retraced``: the lines were traced in this frame; a hover probe then waits for the
+        next frame, so that the new lines' index is not built while this one is drawn (the
+        probe would find it unbuilt anyway)."""
         key = (self._scene_key, self._hover, self.probe_on_hover)
         if (self.probe_on_hover and not self.probe_pinned and self._hover is not None
                 and key != self._probe_key and self._drag is None):
-            self.probe = self.pick(*self._hover, wait=False)
-        self._probe_key = key
+            if retraced:
+                self.wake(1)
+            else:
+                self.probe = self.pick(*self._hover, wait=False)
+                self._probe_key = key
+        else:
+            self._probe_key = key
         if self.probe is None:
             for name in ("probe", "probe marker"):
                 self._overlay(name, None, None, None)
@@ -875,7 +883,7 @@ class Viewer:
                 self.ctx.finish()
                 self.reseed_time = time.perf_counter() - t_seed
                 self._reseed_times = [*self._reseed_times[1 - LIVE_FRAMES:], self.reseed_time]
-            self._update_overlays()
+            self._update_overlays(retraced)
             composed = self.overlays.compose(self.renderer.output())
             screen = self.ctx.detect_framebuffer(0)  # the window's, at its current size
             screen.use()

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..integrate.reasons import Reason
-from ..lines import Lines
+from ..lines import Lines, finite_rows
 
 MAX_BALLS = 4000  # along one ray; beyond it the balls grow (more candidates, fewer queries)
 CHUNK = 32  # balls queried at a time, front to back
@@ -48,7 +48,7 @@ class Picker:
 
     def _finite(self) -> np.ndarray:
         if self._index is None:
-            self._index = np.flatnonzero(np.all(np.isfinite(self.points), axis=1))
+            self._index = np.flatnonzero(finite_rows(self.points))
         return self._index
 
     def _build(self) -> None:
