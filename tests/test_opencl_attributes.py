@@ -10,7 +10,7 @@ import pytest
 
 import flowkit
 from flowkit import Grid, datasets
-from flowkit.fields import analytic
+from flowkit.fields import analytic, curl
 from flowkit.integrate import attributes as host_attributes
 
 pytest.importorskip("pyopencl")  # the `opencl` extra; CI installs it (pocl-binary-distribution)
@@ -274,7 +274,7 @@ def test_vorticity_beside_a_nan_hole_matches_numba(ocl64):
                                rtol=0, atol=1e-9)
     # the lines do pass the hole: np.gradient's stencils alone leave NaN vorticity at some vertices
     g = f.grid
-    d = [[host_attributes.gradient(f.vector[..., c], g.axes[a], g.period[a], a) for a in range(3)]
+    d = [[curl.gradient(f.vector[..., c], g.axes[a], g.period[a], a) for a in range(3)]
          for c in range(3)]
     plain = np.stack([d[2][1] - d[1][2], d[0][2] - d[2][0], d[1][0] - d[0][1]], axis=-1)
     assert np.isnan(host_attributes.sample_grid_vectors(f, plain, got.points)).any()

@@ -102,7 +102,8 @@ def spy(monkeypatch):
     """Counts calls into the integrator, field loading, the curl and scalar sampling."""
     calls = {"trace": [], "load": 0, "curl": 0, "scalar": []}
     real_trace, real_load = trace_mod.trace, plan_mod.load_field
-    real_curl, real_scalar, real_with = attributes_mod.curl, Field.sample_scalar, Field.sample_with
+    real_curl, real_scalar = attributes_mod.vorticity_at, Field.sample_scalar
+    real_with = Field.sample_with
 
     def trace(field, seeds, options=None, **kw):
         calls["trace"].append(tuple(options.attributes))
@@ -112,9 +113,9 @@ def spy(monkeypatch):
         calls["load"] += 1
         return real_load(*a, **kw)
 
-    def curl(field):
+    def curl(field, points):  # the vorticity (the node curl at the vertices' cells)
         calls["curl"] += 1
-        return real_curl(field)
+        return real_curl(field, points)
 
     def sample_scalar(self, name, points):
         calls["scalar"].append(name)
@@ -126,7 +127,7 @@ def spy(monkeypatch):
 
     monkeypatch.setattr(trace_mod, "trace", trace)
     monkeypatch.setattr(plan_mod, "load_field", load)
-    monkeypatch.setattr(attributes_mod, "curl", curl)
+    monkeypatch.setattr(attributes_mod, "vorticity_at", curl)
     monkeypatch.setattr(Field, "sample_scalar", sample_scalar)
     monkeypatch.setattr(Field, "sample_with", sample_with)
     return calls

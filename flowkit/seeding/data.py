@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..fields import curl as _curl
 from ..fields.field import Field
-from ..integrate import attributes as _attributes
 from ..integrate.seeds import SeedError
 from .expr import Expression, ExpressionError
 
@@ -30,11 +30,11 @@ def node_values(field: Field, name: str) -> np.ndarray:
     if name == "speed":
         return field.speed()
     if name in ("vorticity_magnitude", "vorticity"):
-        return np.linalg.norm(_attributes.curl(field), axis=-1)
+        return np.linalg.norm(_curl.curl(field), axis=-1)
     if name.startswith("grad(") and name.endswith(")"):
         s = field.scalar(_known(field, name[5:-1].strip()))
         g = field.grid
-        parts = [_attributes.gradient(s, g.axes[a], g.period[a], a) for a in range(3)]
+        parts = [_curl.gradient(s, g.axes[a], g.period[a], a) for a in range(3)]
         return np.sqrt(sum(p * p for p in parts))
     return field.scalar(_known(field, name))
 
