@@ -59,19 +59,36 @@ def main(argv=None) -> int:
                     help="time each setting this many times (passes interleaved over the tools) "
                     "and keep the fastest (scipy: once)")
     ap.add_argument("--no-plot", action="store_true", help="do not write the PNG")
+    ap.add_argument("--stretch", type=float, default=1.0,
+                    help="> 1: a rectilinear grid, x cells graded to this ratio of widest to "
+                    "narrowest (VTK through vtkRectilinearGrid; streamtracer takes uniform grids "
+                    "only and is skipped)")
+    ap.add_argument("--attributes", default="",
+                    help="comma-separated attributes flowkit computes at every vertex (e.g. "
+                    "speed,time,vorticity); VTK then computes its vorticity (ComputeVorticity), "
+                    "streamtracer and scipy, which compute none, are skipped")
     a = ap.parse_args(argv)
     kw = {"nodes_per_period": 16, "n_seeds": 200} if a.quick else {}
+    if a.stretch != 1.0:
+        kw["stretch"] = a.stretch
     if a.seeds is not None:
         kw["n_seeds"] = a.seeds
     if a.nodes_per_period is not None:
         kw["nodes_per_period"] = a.nodes_per_period
     problem = C.Problem(**kw)
     skip = {s.strip() for s in a.skip.split(",") if s.strip()}
+    attributes = [s.strip() for s in a.attributes.split(",") if s.strip()]
+    if problem.stretch != 1.0:
+        skip.add("streamtracer")
+    if attributes:
+        skip |= {"streamtracer", "scipy"}
 
     print(f"machine: {C.machine()}")
     print(f"problem: ABC on [0, {problem.periods}*2pi]^3, {problem.n_nodes}^3 nodes "
-          f"({problem.nodes_per_period}/period, spacing {problem.spacing:.5g}), "
-          f"{problem.n_seeds} seeds, arc length {problem.length:g}")
+          f"({problem.nodes_per_period}/period, spacing {problem.spacing:.5g}"
+          + (f", x graded {problem.stretch:g}:1" if problem.stretch != 1.0 else "")
+          + f"), {problem.n_seeds} seeds, arc length {problem.length:g}"
+          + (f", attributes {','.join(attributes)}" if attributes else ""))
     t0 = time.perf_counter()
     field = C.abc_field(problem)
     print(f"field: {field.vector.nbytes / 2**30:.2f} GiB float64, sampled in "
@@ -84,7 +101,8 @@ def main(argv=None) -> int:
 
     # Every setting is timed `repeat` times, the passes interleaved over all tools so that
     # each sees the same shared-machine load; the fastest call of each is kept.
-    jobs = list(_all_runs(field, seeds, problem, skip, a.scipy_seeds, a.vtk_threads))
+    jobs = list(_all_runs(field, seeds, problem, skip, a.scipy_seeds, a.vtk_threads,
+                          attributes))
     best = [None] * len(jobs)
     for rep in range(max(a.repeat, 1)):
         for n, job in enumerate(jobs):
@@ -112,6 +130,8 @@ def main(argv=None) -> int:
     print("\n" + ratio_table(rows))
     print(f"\nmachine at the end: {C.machine()}")
     tag = f"{problem.nodes_per_period}npp_{problem.n_seeds}seeds"
+    tag += f"_stretch{problem.stretch:g}" if problem.stretch != 1.0 else ""
+    tag += "_" + "_".join(attributes) if attributes else ""
     path = C.write_csv(C.RESULTS / f"bench_trace_{tag}.csv", rows)
     print(f"CSV: {path}")
     if not a.no_plot:
@@ -129,41 +149,45 @@ def _job(fn, *args, repeat=True, **kw):
     return job
 
 
-def _all_runs(field, seeds, problem, skip, scipy_seeds, threads):
+def _all_runs(field, seeds, problem, skip, scipy_seeds, threads, attributes=()):
     """Zero-argument callables, one per tool setting, each returning a ``common.Run`` (all
-    tools set up at once: VTK's transposed copy of the field lives until the end)."""
+    tools set up at once: VTK's transposed copy of the field lives until the end).  With
+    ``attributes`` flowkit computes them and VTK its vorticity."""
     L = problem.length
+    at = {"attributes": list(attributes)} if attributes else {}
     if "flowkit" not in skip:
-        peers.flowkit_run(field, seeds[:4], L, rtol=1e-3)  # compile (cached) outside the timing
+        peers.flowkit_run(field, seeds[:4], L, rtol=1e-3, **at)  # compile (cached) untimed
         # the default (cell-aware, steps across faces where the kink bound allows), every step
         # ending on a face, and plain
         for kw, tols in (({}, FLOWKIT_TOLS), ({"cross_faces": False}, FLOWKIT_TOLS),
                          ({"cell_aware": False}, PLAIN_TOLS)):
             for tol in tols:
-                yield _job(peers.flowkit_run, field, seeds, L, rtol=tol, **kw)
+                yield _job(peers.flowkit_run, field, seeds, L, rtol=tol, **kw, **at)
         for h in FLOWKIT_RK4:
             yield _job(peers.flowkit_run, field, seeds, L, method="rk4", step=h,
-                       cell_aware=False)
+                       cell_aware=False, **at)
         for h in FLOWKIT_RK4_CELL:
             yield _job(peers.flowkit_run, field, seeds, L, method="rk4", step=h,
-                       cell_aware=True)
+                       cell_aware=True, **at)
     if "vtk" not in skip:
         vt = peers.VTKTracer(field)
         cell = vt.cell_diagonal
+        vo = {"vorticity": bool(attributes)}
         for err in VTK_RK45:  # VTK's default backend (Sequential)
             # VTK's defaults: initial 0.2 cell, steps between 0.01 and 1 cell (diagonals)
             yield _job(_vtk, vt, 1, seeds, L, "RK45", err, step=0.2 * cell,
-                       min_step=0.01 * cell, max_step=cell)
+                       min_step=0.01 * cell, max_step=cell, **vo)
+        # the same in cell units (each cell's own diagonal): equivalent on a uniform grid
         yield _job(_vtk, vt, 1, seeds, L, "RK45", 1e-5, step=0.2, min_step=0.01, max_step=1.0,
-                   unit="cell")  # the same in cell units: equivalent on a uniform grid
+                   unit="cell", **vo)
         for h in VTK_RK4:
-            yield _job(_vtk, vt, 1, seeds, L, "RK4", step=h)
+            yield _job(_vtk, vt, 1, seeds, L, "RK4", step=h, **vo)
         if threads > 1:  # vtkSMPTools STDThread threads
             for err in VTK_RK45[2:]:  # steps up to 10 cells
                 yield _job(_vtk, vt, threads, seeds, L, "RK45", err, step=0.2 * cell,
-                           min_step=1e-4 * cell, max_step=10 * cell)
+                           min_step=1e-4 * cell, max_step=10 * cell, **vo)
             for h in VTK_RK4:
-                yield _job(_vtk, vt, threads, seeds, L, "RK4", step=h)
+                yield _job(_vtk, vt, threads, seeds, L, "RK4", step=h, **vo)
     if "streamtracer" not in skip:
         st = peers.StreamtracerTracer(field)
         for ds in ST_STEPS:

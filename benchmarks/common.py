@@ -31,6 +31,7 @@ os.environ.setdefault("FLOWKIT_LOCKSTEP_WAIT", "1")
 
 from flowkit.fields import Field, interp
 from flowkit.fields.analytic import ABCFlow
+from flowkit.fields.grid import Grid
 from flowkit.io.atomic import atomic_path
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -51,6 +52,7 @@ class Problem:
     rng_seed: int = 20261122
     ref_rtol: float = 1e-12
     ref_atol: float = 1e-12
+    stretch: float = 1.0  # > 1: a rectilinear x axis, its widest cell this many times its narrowest
 
     @property
     def n_nodes(self) -> int:
@@ -67,14 +69,24 @@ class Problem:
     def key(self) -> str:
         """Cache key of the seeds and the reference: every parameter they depend on."""
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        if d["stretch"] == 1.0:  # (the uniform problem's key as before the stretched one existed)
+            del d["stretch"]
         d["scipy"] = scipy.__version__
         return hashlib.sha1(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
 
 
 def abc_field(problem: Problem) -> Field:
-    """ABC sampled exactly at the nodes of the bounded box (float64, (n, n, n, 3))."""
+    """ABC sampled exactly at the nodes of the bounded box (float64, (n, n, n, 3)); with
+    ``stretch`` > 1 the x nodes are graded (cell widths growing geometrically from x = 0, the
+    last ``stretch`` times the first: a stretched mesh as blockMesh grades one), the same count."""
     n = problem.n_nodes
-    return ABCFlow().to_field(n, bounds=[[0.0, problem.span]] * 3, periodic=False)
+    if problem.stretch == 1.0:
+        return ABCFlow().to_field(n, bounds=[[0.0, problem.span]] * 3, periodic=False)
+    w = problem.stretch ** (np.arange(n - 1) / (n - 2))
+    x = np.concatenate([[0.0], np.cumsum(w)]) * (problem.span / w.sum())
+    x[-1] = problem.span
+    u = np.linspace(0.0, problem.span, n)
+    return ABCFlow().to_field(grid=Grid.from_axes(x, u, u))
 
 
 def make_seeds(problem: Problem, margin: float = 1.0) -> np.ndarray:

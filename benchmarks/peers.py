@@ -46,20 +46,25 @@ def flowkit_run(field: Field, seeds, length, method="dopri5", rtol=1e-6, atol=No
     name = f"{method} {tol} cell_aware={'on' if cell_aware else 'off'}"
     if cell_aware and not options.get("cross_faces", True):
         name += " cross_faces=off"
+    if options.get("attributes"):
+        name += " +" + ",".join(options["attributes"])
     return Run("flowkit", name, ends, lines.n_points, t.wall, t.cpu, len(seeds),
-               notes=[f"numba threads {numba.get_num_threads()}"])
+               notes=[f"numba threads {numba.get_num_threads()}",
+                      f"kernel path: {lines.attrs.get('kernel_path', '?')}"])
 
 
 # -- VTK ----------------------------------------------------------------------------------
 
 
 class VTKTracer:
-    """vtkImageData (the vector array as point data, float64) and vtkStreamTracer.
+    """vtkImageData (a uniform grid) or vtkRectilinearGrid (the vector array as point data,
+    float64) and vtkStreamTracer.
 
     VTK stores point data x-fastest, flowkit z-fastest: the image holds a transposed copy of
     the vectors (one more field-sized array while it lives).  vtkStreamTracer (VTK >= 9.1)
     shares seeds among vtkSMPTools threads; the pip wheel starts on the Sequential backend:
-    ``set_threads`` switches to STDThread (and back).
+    ``set_threads`` switches to STDThread (and back).  ``cell_diagonal`` is the mean cell's
+    (the length-unit steps are set from it; VTK's cell unit is each cell's own diagonal).
     """
 
     def __init__(self, field: Field):
@@ -67,20 +72,26 @@ class VTKTracer:
         from vtk.util.numpy_support import numpy_to_vtk
 
         g = field.grid
-        if not g.uniform:
-            raise ValueError("VTKTracer: vtkImageData needs a uniform grid")
         self.vtk = vtk
-        img = vtk.vtkImageData()
-        img.SetDimensions(*g.shape)
-        img.SetOrigin(*g.origin)
-        img.SetSpacing(*g.spacing)
+        if g.uniform:
+            img = vtk.vtkImageData()
+            img.SetDimensions(*g.shape)
+            img.SetOrigin(*g.origin)
+            img.SetSpacing(*g.spacing)
+        else:
+            img = vtk.vtkRectilinearGrid()
+            img.SetDimensions(*g.shape)
+            img.SetXCoordinates(numpy_to_vtk(g.axes[0].copy(), deep=1))
+            img.SetYCoordinates(numpy_to_vtk(g.axes[1].copy(), deep=1))
+            img.SetZCoordinates(numpy_to_vtk(g.axes[2].copy(), deep=1))
         self._vectors = np.ascontiguousarray(field.vector.transpose(2, 1, 0, 3)).reshape(-1, 3)
         arr = numpy_to_vtk(self._vectors, deep=0)  # shares self._vectors, kept alive above
         arr.SetName(field.vector_name)
         img.GetPointData().SetVectors(arr)
         self.image = img
         self.vector_name = field.vector_name
-        self.cell_diagonal = float(np.linalg.norm(g.spacing))
+        mean_width = [(c[-1] - c[0]) / (c.size - 1) for c in g.axes]
+        self.cell_diagonal = float(np.linalg.norm(mean_width))
 
     @staticmethod
     def set_threads(n: int) -> None:
@@ -98,7 +109,8 @@ class VTKTracer:
                 f"{vtkSMPTools.GetEstimatedNumberOfThreads()} thread(s)")
 
     def run(self, seeds, length, integrator="RK45", max_error=1e-6, step=0.1,
-            min_step=None, max_step=None, unit="length", rk45_overshoot=4.0) -> Run:
+            min_step=None, max_step=None, unit="length", rk45_overshoot=4.0,
+            vorticity=False) -> Run:
         """``step`` (and min/max) in length units, or in cells (VTK's cell length is the cell
         diagonal) with ``unit="cell"``; RK4 is fixed-step at ``step``.
 
@@ -112,17 +124,19 @@ class VTKTracer:
         ``rk45_overshoot * length`` of VTK's propagation, and the timed wall time is scaled by
         the fraction of the vertices that lie within arc length ``length`` (VTK's cost is per
         step); lines still short are traced again, untimed, much further (the steps are the
-        same) and counted at their full time.
+        same) and counted at their full time.  ``vorticity``: VTK's ComputeVorticity (vorticity,
+        rotation and angular velocity at every vertex; its time and velocity are always there).
         """
         far = length if integrator == "RK4" else rk45_overshoot * length
-        tracer = self._tracer(seeds, far, integrator, max_error, step, min_step, max_step, unit)
+        tracer = self._tracer(seeds, far, integrator, max_error, step, min_step, max_step, unit,
+                              vorticity)
         with Timer() as t:
             tracer.Update()
         ends, s_end, nv, n_within = self._ends(tracer.GetOutput(), len(seeds), length)
         short = np.flatnonzero(np.isnan(ends[:, 0]))
         if short.size:
             again = self._tracer(seeds[short], 20 * length, integrator, max_error, step,
-                                 min_step, max_step, unit)
+                                 min_step, max_step, unit, vorticity)
             again.Update()
             ends[short] = self._ends(again.GetOutput(), short.size, length)[0]
         scale = 1.0 if integrator == "RK4" else n_within / nv
@@ -134,6 +148,8 @@ class VTKTracer:
             name = f"RK45 err={max_error:.0e} h0={step:.3g} [{lo:.2g}, {hi:.2g}] {unit}"
         from vtkmodules.vtkCommonCore import vtkSMPTools
 
+        if vorticity:
+            name += " vorticity"
         if vtkSMPTools.GetBackend() != "Sequential":
             name += f" smp={vtkSMPTools.GetEstimatedNumberOfThreads()}"
         notes = [self.threads()]
@@ -143,7 +159,8 @@ class VTKTracer:
         return Run("vtk", name, ends, n_within, t.wall * scale, t.cpu * scale, len(seeds),
                    notes=notes)
 
-    def _tracer(self, seeds, length, integrator, max_error, step, min_step, max_step, unit):
+    def _tracer(self, seeds, length, integrator, max_error, step, min_step, max_step, unit,
+                vorticity=False):
         vtk = self.vtk
         from vtk.util.numpy_support import numpy_to_vtk
 
@@ -164,7 +181,7 @@ class VTKTracer:
         st.SetMaximumPropagation(length)
         st.SetMaximumNumberOfSteps(10**9)
         st.SetTerminalSpeed(1e-300)
-        st.SetComputeVorticity(False)
+        st.SetComputeVorticity(vorticity)
         return st
 
     def _ends(self, out, n_seeds, length):
