@@ -379,19 +379,14 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
     method = opts.method_obj
     mc, ma, mb, me, me2, mp, mi = method.kernel_arrays()
     held: dict[int, Field] = {}
-    curls: dict[int, np.ndarray] = {}  # node curl of a held snapshot, when vorticity is asked for
-    vort = any(a in ("vorticity", "vorticity_magnitude") for a in opts.attributes)
     setup = fa = fb = None
     for k in order:
         fa = fb = None  # no reference may keep a passed snapshot alive
         for old in [i for i in held if i not in (k, k + 1)]:
             del held[old]  # drop the snapshot the sweep has passed before loading the next one
-            curls.pop(old, None)
         for i in (k, k + 1):
             if i not in held:
                 held[i] = _load(sources[i], vector)
-                if vort:
-                    curls[i] = _attributes.curl(held[i])
         fa, fb = held[k], held[k + 1]
         if setup is None:
             setup = _Setup(fa, opts)
@@ -416,8 +411,7 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
             owner = np.repeat(active, out_n)
             pts, tv = out_p[keep], out_t[keep]
             chunks.append((owner, pts, tv, out_s[keep],
-                           _sampled(opts.attributes, fa, fb, ta, tb, pts, tv,
-                                    (curls.get(k), curls.get(k + 1)))))
+                           _sampled(opts.attributes, fa, fb, ta, tb, pts, tv)))
             busy = (si[active, I_STATUS] == RUNNING) & (sf[active, S_TAU] != goal)
             active = active[busy]
     still = si[:, I_STATUS]
@@ -503,9 +497,9 @@ class _Setup:
                              f"snapshot's {self.shape}; pathlines need one grid for the series")
 
 
-def _sampled(names, fa: Field, fb: Field, ta, tb, pts, tv, curls) -> dict:
+def _sampled(names, fa: Field, fb: Field, ta, tb, pts, tv) -> dict:
     """Attributes that need the field at the vertices, interpolated in time like the velocity
-    (the vorticity: the two snapshots' node curls ``curls``, each sampled trilinearly)."""
+    (the vorticity: each snapshot's, from its node curl at the vertices' cells)."""
     out = {}
     a = ((tv - ta) / (tb - ta))
     for name in names:
@@ -514,7 +508,7 @@ def _sampled(names, fa: Field, fb: Field, ta, tb, pts, tv, curls) -> dict:
                 out["velocity"] = (1 - a)[:, None] * fa.sample(pts)[0] + a[:, None] * fb.sample(pts)[0]
         elif name in ("vorticity", "vorticity_magnitude"):
             if "vorticity" not in out:
-                wa, wb = (_attributes.sample_grid_vectors(fa, w, pts) for w in curls)
+                wa, wb = _attributes.vorticity_at(fa, pts), _attributes.vorticity_at(fb, pts)
                 out["vorticity"] = (1 - a)[:, None] * wa + a[:, None] * wb
         elif name in fa.scalars:
             out[name] = (1 - a) * fa.sample_scalar(name, pts)[0] + a * fb.sample_scalar(name, pts)[0]
