@@ -58,7 +58,7 @@ import numpy as np
 import numba
 import flowkit
 from flowkit import datasets
-from flowkit.fields import interp
+from flowkit.fields import curl, interp
 from flowkit.fields.analytic import ABCFlow
 from flowkit.integrate import kernel as K, lanes, pathlines as P, rosenbrock as R, seeds, stiffness
 f = datasets.hotroom()
@@ -67,20 +67,21 @@ f.sample(s)
 f.sample_scalar("T", s)
 flowkit.trace(f, s, max_length=3, method="ros34pw2", direction="both")
 series = ABCFlow().to_series([0.0, 1.0], shape=12, bounds=[[0, 2 * np.pi]] * 3)
-P.pathlines(series, s[:, [0, 0, 2]] * 0.5, max_time=0.5, attributes=["speed"])
+P.pathlines(series, s[:, [0, 0, 2]] * 0.5, max_time=0.5, attributes=["speed", "vorticity"])
+flowkit.trace(f, s, max_length=3, attributes=["vorticity"])
 flowkit.trace(f, s, max_length=3, method="rk4", step=0.1, cell_aware=False)  # the lock-step
 flowkit.trace(f, s, max_length=3, cell_aware=False, rtol=1e-6)
 print(json.dumps({m.__name__: {n: len(d.signatures) for n, d in vars(m).items()
                                if isinstance(d, numba.core.registry.CPUDispatcher)
                                and d.py_func.__module__ == m.__name__}
-                  for m in (interp, K, P, R, lanes, stiffness)}))
+                  for m in (interp, curl, K, P, R, lanes, stiffness)}))
 """
 
 
 def test_attributes_pathlines_rosenbrock_lanes_compile_one_specialization_each(tmp_path):
     """A literal argument or a prange index compiles a helper once more per value or type (each
     seconds on a fresh machine): with an empty cache (a helper loaded inside its caller's cached
-    code is not counted), every compiled function of the samplers, the pathline and the
+    code is not counted), every compiled function of the samplers, the vorticity, the pathline and the
     Rosenbrock integrators, the lock-step and the kernel helpers they share has one signature
     at most."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), FLOWKIT_LOCKSTEP_WAIT="1")
@@ -92,6 +93,7 @@ def test_attributes_pathlines_rosenbrock_lanes_compile_one_specialization_each(t
     assert counts["flowkit.integrate.pathlines"]["_velocity"] == 1
     assert counts["flowkit.integrate.rosenbrock"]["_lines"] == 1
     assert counts["flowkit.fields.interp"]["_sample_range"] == 1
+    assert counts["flowkit.fields.curl"]["_curl_range"] == 1  # the vorticity's node curl
     assert counts["flowkit.integrate.lanes"]["lockstep"] == 1
     assert counts["flowkit.integrate.kernel"]["_dense"] == 1  # shared by every driver
 

@@ -209,15 +209,16 @@ def _curl_range(start, stop, ids, vec, mode, nodes, w, fbn, fbw, off, out):
     """The curl at nodes ids[start:stop] (flat node indices; ids empty: the nodes start..stop
     themselves) into out (nx, ny, nz, 3)."""
     ny, nz = vec.shape[1], vec.shape[2]
+    x, y, z = np.int64(0), np.int64(1), np.int64(2)  # typed: a literal compiles a copy per value
     for n in range(start, stop):
         q = ids[n] if ids.size else n
         i, j, k = q // (ny * nz), (q // nz) % ny, q % nz
-        out[i, j, k, 0] = (_derivative(vec, 2, 1, i, j, k, mode, nodes, w, fbn, fbw, off)
-                           - _derivative(vec, 1, 2, i, j, k, mode, nodes, w, fbn, fbw, off))
-        out[i, j, k, 1] = (_derivative(vec, 0, 2, i, j, k, mode, nodes, w, fbn, fbw, off)
-                           - _derivative(vec, 2, 0, i, j, k, mode, nodes, w, fbn, fbw, off))
-        out[i, j, k, 2] = (_derivative(vec, 1, 0, i, j, k, mode, nodes, w, fbn, fbw, off)
-                           - _derivative(vec, 0, 1, i, j, k, mode, nodes, w, fbn, fbw, off))
+        out[i, j, k, 0] = (_derivative(vec, z, y, i, j, k, mode, nodes, w, fbn, fbw, off)
+                           - _derivative(vec, y, z, i, j, k, mode, nodes, w, fbn, fbw, off))
+        out[i, j, k, 1] = (_derivative(vec, x, z, i, j, k, mode, nodes, w, fbn, fbw, off)
+                           - _derivative(vec, z, x, i, j, k, mode, nodes, w, fbn, fbw, off))
+        out[i, j, k, 2] = (_derivative(vec, y, x, i, j, k, mode, nodes, w, fbn, fbw, off)
+                           - _derivative(vec, x, y, i, j, k, mode, nodes, w, fbn, fbw, off))
 
 
 @njit(cache=True, nogil=True)
