@@ -265,7 +265,7 @@ def test_explain_says_what_is_computed_and_why(tmp_path, field_file, capsys, spy
     assert "  speed: field sampled at every vertex (trilinear)" in out
     assert "    read by view 'side': style 'fast' band 1 colour (viridis)" in out
     assert "    read by view 'top': style 'fast' band 1 colour (viridis)" in out
-    assert ("not computed (no style reads it): vorticity curl of the grid (vorticity, "
+    assert ("not computed (no style reads it): vorticity curl (vorticity, "
             "vorticity_magnitude); scalar field sampling (e.g. T)") in out
     assert "style 'swirly': inline  -- drawn by no view: nothing traced for it" in out
     assert "  snapshot 0: miss: trace" in out

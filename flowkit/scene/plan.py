@@ -28,7 +28,8 @@ VECTOR_ATTRIBUTES = ("velocity", "vorticity")
 COST = {
     "params": "from the integrator (no extra work)",
     "velocity": "field sampled at every vertex (trilinear)",
-    "curl": "curl of the whole grid (second-order differences), then sampled at every vertex",
+    "curl": "node curl (second-order differences) at the corners of the vertices' cells, "
+            "sampled at every vertex",
     "seed": "seed position per vertex (no sampling)",
 }
 
@@ -178,7 +179,7 @@ def explain(plan: Plan, cache=None) -> str:
     if "velocity" not in needed:
         skipped.append("velocity sampling (speed, velocity)")
     if "curl" not in needed:
-        skipped.append("vorticity curl of the grid (vorticity, vorticity_magnitude)")
+        skipped.append("vorticity curl (vorticity, vorticity_magnitude)")
     if "scalar" not in needed:
         skipped.append("scalar field sampling (e.g. T)")
     if skipped:
