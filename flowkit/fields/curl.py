@@ -192,7 +192,7 @@ def _derivative(vec, comp, axis, i, j, k, mode, nodes, w, fbn, fbw, off):
     for cand in range(4):
         if fbn[r, cand, 0] < 0:
             continue
-        acc = 0.0  # (from 0.0, as the tables' host code sums: a -0.0 term gives +0.0)
+        acc = 0.0  # (summed from 0.0: a -0.0 first product gives +0.0, not -0.0)
         ok = True
         for slot in range(3):
             q = fbn[r, cand, slot]
