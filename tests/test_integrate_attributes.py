@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from flowkit import Field, Grid, trace
+from flowkit.fields import curl, interp
 from flowkit.fields.analytic import ABCFlow, SolidBodyRotation
 from flowkit.fields.curl import gradient
 from flowkit.integrate import attributes
@@ -55,7 +56,7 @@ def test_attributes_match_exact_values(grid):
 
 def test_periodic_curl_of_abc_is_the_field_itself():
     f = ABCFlow().to_field(32, bounds=[[0, 2 * np.pi]] * 3, periodic=True)
-    w = attributes.curl(f)
+    w = curl.curl(f)
     # Beltrami flow: curl u = u; second-order differences err by about h^2 / 6
     h = 2 * np.pi / 32
     err = np.abs(w - f.vector).max()
@@ -156,7 +157,7 @@ def test_curl_next_to_a_nan_hole_takes_one_sided_differences(kind):
     else:  # v = (y^2, z^2, x^2): curl (-2z, -2x, -2y)
         f, (X, Y, Z), nan = _holed(lambda x, y, z: (y**2, z**2, x**2))
         want = np.stack([-2 * Z, -2 * X, -2 * Y], axis=-1)
-    w = attributes.curl(f)
+    w = curl.curl(f)
     np.testing.assert_array_equal(np.isnan(w).any(axis=-1), nan)
     np.testing.assert_allclose(w[~nan], want[~nan], rtol=0, atol=1e-11)
 
@@ -170,7 +171,7 @@ def test_curl_fallbacks_use_a_two_point_difference_only_between_two_nans():
     g = Grid.from_axes(c, [0.0, 1.0], [0.0, 1.0])
     v = np.zeros(g.shape + (3,))
     v[..., 1] = f[:, None, None]  # curl_z = d v_y / dx
-    d = attributes.curl(Field(g, v))[:, 0, 0, 2]
+    d = curl.curl(Field(g, v))[:, 0, 0, 2]
     assert d[1] == pytest.approx((f[2] - f[1]) / (c[2] - c[1]), rel=1e-14)
     assert d[2] == pytest.approx((f[2] - f[1]) / (c[2] - c[1]), rel=1e-14)  # backward 2-point
     assert np.isnan(d[4])  # NaN on both sides
@@ -189,7 +190,7 @@ def test_curl_fallbacks_wrap_across_a_periodic_seam():
         X = np.meshgrid(*g.axes, indexing="ij")[0]
         v = np.stack([0 * X, np.sin(X), 0 * X], axis=-1)  # curl_z = cos x
         v[1] = np.nan  # node 0's standard stencil (n-1, 1) and forward stencils meet NaN
-        w = attributes.curl(Field(g, v))
+        w = curl.curl(Field(g, v))
         assert np.isnan(w[1]).all() and np.isfinite(w[0]).all() and np.isfinite(w[2]).all()
         h = x[1] - x[0]
         np.testing.assert_allclose(w[0, ..., 2], 1.0, atol=h**2)  # 3-point backward, wrapped
@@ -227,7 +228,7 @@ SPACINGS = {  # np.gradient takes its uniform formulas only where every spacing 
 @pytest.mark.parametrize("kind", SPACINGS)
 def test_node_curl_is_np_gradients_bit_for_bit_and_sampled_at_points_as_the_grid(kind):
     f = ABCFlow().to_field(grid=SPACINGS[kind])
-    w = attributes.curl(f)
+    w = curl.curl(f)
     assert np.array_equal(w, _np_curl(f))
     # at points, from the corners of their cells only: the whole grid's curl sampled, exactly,
     # NaN holes, nodes and points outside included
@@ -239,7 +240,8 @@ def test_node_curl_is_np_gradients_bit_for_bit_and_sampled_at_points_as_the_grid
     pts = lo + (hi - lo) * np.random.default_rng(3).uniform(-0.05, 1.05, (4000, 3))
     pts[:8] = np.array(np.meshgrid(*[c[:2] for c in f.grid.axes])).reshape(3, -1).T
     for field in (f, holed):
-        want = attributes.sample_grid_vectors(field, attributes.curl(field), pts)
+        want, status = np.empty((len(pts), 3)), np.empty(len(pts), np.int8)
+        interp.sample_vectors(*field.grid.kernel_args(), curl.curl(field), pts, want, status)
         assert np.array_equal(attributes.vorticity_at(field, pts), want, equal_nan=True)
     assert np.isnan(want).any() and np.isfinite(want).any()
 
@@ -249,7 +251,7 @@ def test_vector_and_scalar_sampled_together_are_the_separate_samples_bit_for_bit
     """Speed and a scalar (the viewer's heated room: speed, T) are sampled in one pass that
     locates each vertex once: the same values, to the bit, as a pass for each, and the status
     NAN_CELL where either's cell has a NaN corner."""
-    from flowkit.fields import interp
+
 
     f = _rotation(grid)
     f.vector[2:4, 3:5, 1:3] = np.nan  # NaN cells of the vector, others of the scalar

@@ -10,7 +10,7 @@ import pytest
 
 import flowkit
 from flowkit import Grid, datasets
-from flowkit.fields import analytic, curl
+from flowkit.fields import analytic, curl, interp
 from flowkit.integrate import attributes as host_attributes
 
 pytest.importorskip("pyopencl")  # the `opencl` extra; CI installs it (pocl-binary-distribution)
@@ -192,7 +192,7 @@ def _table_deriv(grid, v, comp, ax):
 
 
 def test_stencils_are_the_host_curl(fields):
-    """The stencil table applied to node data is attributes.curl's derivative, NaN included."""
+    """The stencil table applied to node data is fields.curl's derivative, NaN included."""
     rng = np.random.default_rng(0)
     for name in ("abc", "abc_rect", "hotroom"):
         g = fields[name].grid
@@ -201,7 +201,7 @@ def test_stencils_are_the_host_curl(fields):
         v[3, 4, 5, 1] = np.nan
         v[5:7, 2:4, 1:3] = np.nan  # a hole: its neighbours take one-sided differences
         v[1, 6:8, 3:5] = np.nan  # beside the seam: on abc (periodic) node 0's wrap across it
-        want = host_attributes.curl(flowkit.Field(g, v, source="probe"))
+        want = curl.curl(flowkit.Field(g, v, source="probe"))
         got = np.stack([_table_deriv(g, v, 2, 1) - _table_deriv(g, v, 1, 2),
                         _table_deriv(g, v, 0, 2) - _table_deriv(g, v, 2, 0),
                         _table_deriv(g, v, 1, 0) - _table_deriv(g, v, 0, 1)], axis=-1)
@@ -277,4 +277,6 @@ def test_vorticity_beside_a_nan_hole_matches_numba(ocl64):
     d = [[curl.gradient(f.vector[..., c], g.axes[a], g.period[a], a) for a in range(3)]
          for c in range(3)]
     plain = np.stack([d[2][1] - d[1][2], d[0][2] - d[2][0], d[1][0] - d[0][1]], axis=-1)
-    assert np.isnan(host_attributes.sample_grid_vectors(f, plain, got.points)).any()
+    sampled, status = np.empty((len(got.points), 3)), np.empty(len(got.points), np.int8)
+    interp.sample_vectors(*g.kernel_args(), plain, got.points.astype(np.float64), sampled, status)
+    assert np.isnan(sampled).any()

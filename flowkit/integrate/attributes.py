@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fields import Field, interp
-from ..fields.curl import curl, vorticity_at  # noqa: F401 (curl: pathlines' node curl)
+from ..fields import Field
+from ..fields.curl import vorticity_at
 
 # name -> intermediates it needs
 ATTRIBUTES = {
@@ -90,15 +90,6 @@ def check(field: Field, names) -> None:
         if n not in ATTRIBUTES and n not in field.scalars:
             have = ", ".join(list(ATTRIBUTES) + sorted(field.scalars))
             raise KeyError(f"{field.source}: unknown attribute '{n}' (available: {have})")
-
-
-def sample_grid_vectors(field: Field, w: np.ndarray, points) -> np.ndarray:
-    """Node vectors ``w`` (nx, ny, nz, 3) on the field's grid, sampled trilinearly at ``points``
-    as the field itself is (NaN outside)."""
-    out = np.empty((points.shape[0], 3))
-    status = np.empty(points.shape[0], np.int8)
-    interp.sample_vectors(*field.grid.kernel_args(), w, np.ascontiguousarray(points), out, status)
-    return out
 
 
 def norm(v: np.ndarray) -> np.ndarray:

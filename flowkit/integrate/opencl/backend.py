@@ -145,7 +145,7 @@ class OpenCLAdvance:
         return args
 
     def _curl_grid(self, field, flags, arrays, vec_buf):
-        """attributes.curl at the nodes, computed on the device from the field buffer already
+        """fields.curl.curl at the nodes, computed on the device from the field buffer already
         there (only the stencil table, kilobytes, is uploaded); kept while the field is."""
         cl = self.cl
         nodes, weights, k = vertex.stencils(field.grid)
