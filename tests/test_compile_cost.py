@@ -15,8 +15,18 @@ import subprocess
 import sys
 
 CODE = """
-import json, logging
+import hashlib, json, logging
 import numba
+from numba.core import event
+compiled = []
+class C(event.Listener):
+    def on_start(self, ev):
+        pass
+    def on_end(self, ev):
+        f = ev.data["dispatcher"].py_func
+        if f.__module__.startswith("flowkit."):
+            compiled.append(f.__qualname__)
+event.register("numba:compile", C())
 import flowkit
 from flowkit import datasets
 from flowkit.integrate import kernel as K, lanes, seeds
@@ -28,20 +38,32 @@ logging.getLogger("flowkit.compile").addHandler(H())
 logging.getLogger("flowkit.compile").setLevel(logging.INFO)
 f = datasets.hotroom()
 s = seeds.line((1, 1, 1), (9, 1, 9), 16)
-flowkit.trace(f, s, max_length=5)
-flowkit.trace(f, s, max_length=5, direction="both", spacing=0.1, rtol=1e-6)
-flowkit.trace(f, s, max_length=5, method="dop853")
+digest = hashlib.sha256()
+for opts in ({}, {"direction": "both", "spacing": 0.1, "rtol": 1e-6}, {"method": "dop853"}):
+    digest.update(flowkit.trace(f, s, max_length=5, **opts).points.tobytes())
 sigs = {n: [str(x) for x in d.signatures] for n, d in vars(K).items()
         if isinstance(d, numba.core.registry.CPUDispatcher)}
-print(json.dumps({"sigs": sigs, "lockstep": len(lanes.lockstep.signatures), "notices": notices}))
+from flowkit.helper_sigs import HELPERS
+import importlib
+table = HELPERS["flowkit.integrate.kernel._advance_lines"]
+stale = [n for m, n, sig in table
+         if getattr(importlib.import_module(m), n).signatures != [sig]]
+print(json.dumps({"sigs": sigs, "lockstep": len(lanes.lockstep.signatures), "notices": notices,
+                  "compiled": compiled, "points": digest.hexdigest(), "stale": stale,
+                  "table": sorted(n for m, n, sig in table)}))
 """
 
 
-def test_default_trace_compiles_one_specialization_of_each_function(tmp_path):
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
-    out = subprocess.run([sys.executable, "-c", CODE], env=env, capture_output=True, text=True,
+def _cold_run(tmp_path, code, parallel):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / f"numba{parallel}"),
+               FLOWKIT_PARALLEL_COMPILE=str(parallel))
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                          timeout=900, check=True).stdout
-    res = json.loads(out.strip().splitlines()[-1])
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def test_default_trace_compiles_one_specialization_of_each_function(tmp_path):
+    res = _cold_run(tmp_path, CODE, 1)
     sigs = res["sigs"]
     assert len(sigs["_advance_lines"]) == 1
     many = {n: s for n, s in sigs.items() if len(s) > 1}
@@ -50,6 +72,23 @@ def test_default_trace_compiles_one_specialization_of_each_function(tmp_path):
     # the compilation took seconds: the user was told, once
     assert any("compiling the tracing kernel for this CPU, once" in m for m in res["notices"])
     assert len(res["notices"]) == len(set(res["notices"]))
+
+
+def test_helpers_compiled_in_a_second_process_give_the_same_lines(tmp_path):
+    """With two cores, the first trace's helpers are shared between this process and a second
+    one (flowkit.parallel_compile): this process compiles fewer of them than alone, loads the
+    others from the disk cache, and the lines are the same bits."""
+    together = _cold_run(tmp_path, CODE, 1)
+    alone = _cold_run(tmp_path, CODE, 0)
+    assert together["points"] == alone["points"]
+    # that process's table (helper_sigs.py) names every helper the kernel asks for, with the
+    # argument types it asks for (else: python -m flowkit.parallel_compile --write)
+    assert not alone["stale"], f"helper_sigs.py is stale for {alone['stale']}"
+    helpers = {n for n, sig in alone["sigs"].items() if sig and n != "_advance_lines"}
+    assert helpers <= set(alone["table"]), helpers - set(alone["table"])
+    assert set(alone["table"]) <= set(alone["compiled"])
+    loaded = set(alone["compiled"]) - set(together["compiled"])
+    assert len(loaded) >= 5, f"the second process compiled only {sorted(loaded)}"
 
 
 OPTIONS_CODE = """

@@ -1151,6 +1151,9 @@ def advance(launch):
     buffers (lanes.py).  The lines are shared among numba's threads in ranges
     (``threads.run_ranges``) rather than by a ``prange``: a parallel loop around the kernel
     costs several seconds more to compile on every fresh machine."""
+    from .. import parallel_compile  # (here: `python -m flowkit.parallel_compile` runs it)
+
+    parallel_compile.start("flowkit.integrate.kernel._advance_lines", _advance_lines)
     run_ranges(_advance_range, launch.active.size, *launch.arrays())
 
 

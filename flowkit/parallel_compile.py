@@ -1,0 +1,183 @@
+"""A kernel's helpers compiled in a second process while this one compiles the kernel.
+
+numba compiles one function at a time (a process-wide lock, and its typing and lowering are
+Python under the GIL), so on a fresh machine the first trace keeps one core busy for seconds
+while the other waits.  When the tracing kernel is about to be compiled here and numba's disk
+cache does not hold it, ``start`` runs ``python -m flowkit.parallel_compile KERNEL`` beside
+it.  That process compiles the kernel's helpers into the same disk cache in the reverse of the
+order in which the kernel's typing asks for them, while this process types the kernel from the
+front: where this one reaches a helper that the other has cached, numba loads it instead of
+compiling it again.  The two meet about halfway; the kernel's own typing, lowering and LLVM
+optimisation stay here.  The machine code is the same, and so are the lines, bit for bit: a
+cached helper carries its optimised LLVM bitcode, which the kernel links and inlines exactly
+as it links a helper compiled in its own process.
+
+Not started on one core, where numba's cache is not written (no writable folder), with
+``FLOWKIT_PARALLEL_COMPILE=0``, or when the disk cache already holds the kernel.  The helpers
+and their argument types are the table in ``helper_sigs.py``, written by
+``python -m flowkit.parallel_compile --write`` from a default trace on an empty cache and
+checked by tests/test_compile_cost.py.  A stale entry only wastes the other process's time (it
+compiles a signature nobody asks for); it never changes what this process runs.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+import subprocess
+import sys
+import textwrap
+import threading
+from pathlib import Path
+
+LOG = logging.getLogger("flowkit.compile")
+_started: set[str] = set()
+
+
+def enabled() -> bool:
+    return os.environ.get("FLOWKIT_PARALLEL_COMPILE", "1") != "0" and (os.cpu_count() or 1) > 1
+
+
+def in_disk_cache(dispatcher) -> bool:
+    """Whether numba's disk cache holds a compiled ``dispatcher`` for this CPU and this source
+    (any signature): its index read as numba's ``Cache.load_overload`` reads it; False where
+    that cannot be read."""
+    try:
+        cache = dispatcher._cache
+        tail = cache._index_key((), dispatcher.targetctx.codegen())[1:]
+        return any(key[1:] == tail for key in cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 (numba internals: then compile as usual)
+        return False
+
+
+def _writes_cache(dispatcher) -> bool:
+    cache = getattr(dispatcher, "_cache", None)
+    path = getattr(cache, "cache_path", None)
+    return path is not None and os.access(path, os.W_OK)
+
+
+def start(kernel: str, dispatcher) -> subprocess.Popen | None:
+    """Start compiling ``kernel``'s helpers (a key of ``helper_sigs.HELPERS``) in a second
+    process, once per process, unless that would not help (above); returns the process."""
+    if kernel in _started or not enabled() or dispatcher.overloads:
+        return None
+    _started.add(kernel)
+    if not _writes_cache(dispatcher) or in_disk_cache(dispatcher):
+        return None
+    root = str(Path(__file__).resolve().parent.parent)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        p for p in (root, os.environ.get("PYTHONPATH", "")) if p))
+    try:
+        proc = subprocess.Popen([sys.executable, "-m", "flowkit.parallel_compile", kernel],
+                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL, env=env)
+    except OSError as e:  # no interpreter to start (an embedded Python): compile here alone
+        LOG.debug("no second compile process: %s", e)
+        return None
+    threading.Thread(target=proc.wait, daemon=True, name="flowkit-compile-reaper").start()
+    return proc
+
+
+def compile_helpers(kernel: str) -> int:
+    """Compile ``kernel``'s helpers, last asked for first; returns how many compiled or loaded
+    (an entry that no longer matches its function is skipped)."""
+    from .helper_sigs import HELPERS
+
+    done = 0
+    for module, name, sig in reversed(HELPERS[kernel]):
+        try:
+            getattr(importlib.import_module(module), name).compile(sig)
+            done += 1
+        except Exception as e:  # noqa: BLE001 (a stale entry: the kernel's process compiles it)
+            LOG.debug("%s.%s%s: %s", module, name, sig, e)
+    return done
+
+
+# -- writing the table ------------------------------------------------------------------------
+def _type_src(ty) -> str:
+    from numba.core import types
+
+    if isinstance(ty, types.Array) and ty.layout == "C" and ty.mutable and ty.ndim <= 4:
+        return f"{_type_src(ty.dtype)}{ty.ndim}"  # F2: a C-contiguous 2-d float64 array
+    if isinstance(ty, types.UniTuple):
+        return f"t.UniTuple({_type_src(ty.dtype)}, {ty.count})"
+    names = {types.float64: "F", types.int64: "I", types.boolean: "B"}
+    if ty in names:
+        return names[ty]
+    raise ValueError(f"helper_sigs: no source form for the type {ty!r}")
+
+
+def compile_order(run, kernel: str) -> list[tuple[str, str, tuple]]:
+    """(module, name, argument types) of every flowkit function compiled while ``run()``
+    compiles ``kernel`` (a qualified name), in the order the compilations end (the kernel's
+    typing asks for a helper's callees first), the kernel itself left out."""
+    from numba.core import event
+
+    seen = {}  # (module, name) -> dispatcher, in the order they were compiled
+
+    class Listener(event.Listener):
+        def on_start(self, ev):
+            pass
+
+        def on_end(self, ev):
+            d = ev.data["dispatcher"]
+            name = (d.py_func.__module__, d.py_func.__qualname__)
+            if name[0].startswith("flowkit.") and ".".join(name) != kernel:
+                seen.setdefault(name, d)
+
+    with event.install_listener("numba:compile", Listener()):
+        run()
+    out = []
+    for (m, n), d in seen.items():
+        (sig,) = d.signatures
+        out.append((m, n, tuple(sig)))
+    return out
+
+
+def write_table(path: Path | None = None) -> Path:
+    """Write helper_sigs.py from a default trace (run on an empty cache: a helper loaded from
+    the cache is not seen compiling)."""
+    import flowkit
+    from flowkit import warmup
+
+    field = warmup.stand_in()
+    kernels = {"flowkit.integrate.kernel._advance_lines":
+               lambda: flowkit.trace(field, warmup.SEEDS, max_length=4.0)}
+    lines = ['"""The helpers each kernel\'s compilation asks for, with their argument types, in the',
+             "order its typing asks for them (written by `python -m flowkit.parallel_compile",
+             "--write` on an empty cache; tests/test_compile_cost.py checks it against a default",
+             'trace; flowkit/parallel_compile.py says what it is for)."""',
+             "", "from numba.core import types as t", "",
+             "F, I, B = t.float64, t.int64, t.boolean",
+             "F1, F2, F3, F4 = (t.Array(F, n, \"C\") for n in (1, 2, 3, 4))",
+             "I1, I2, I3, I4 = (t.Array(I, n, \"C\") for n in (1, 2, 3, 4))",
+             "B1, B2, B3, B4 = (t.Array(B, n, \"C\") for n in (1, 2, 3, 4))",
+             "", "HELPERS = {"]
+    for kernel, run in kernels.items():
+        lines.append(f'    "{kernel}": (')
+        for m, n, sig in compile_order(run, kernel):
+            args = ", ".join(_type_src(a) for a in sig) + ","
+            lines += textwrap.wrap(f'("{m}", "{n}", ({args})),', 99, initial_indent=" " * 8,
+                                   subsequent_indent=" " * 9, break_long_words=False)
+        lines.append("    ),")
+    lines.append("}")
+    path = path or Path(__file__).with_name("helper_sigs.py")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv == ["--write"]:
+        print(write_table())
+        return 0
+    (kernel,) = argv
+    import flowkit  # noqa: F401 (the cache location, as in the process that started this one)
+
+    compile_helpers(kernel)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
