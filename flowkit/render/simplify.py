@@ -37,6 +37,7 @@ import math
 import numba
 import numpy as np
 
+from ..integrate.threads import run_ranges
 from ..lines import Lines, finite_rows
 from .style import ColorMap, Style, WidthMap
 
@@ -262,15 +263,23 @@ def _deviation(v, dv, s, i, j, m, kind, vtol, L, d, a, b):
     return err / abs(dv[m])
 
 
-@numba.njit(cache=True, parallel=True)
+# The per-run loops run on threads over ranges of runs (integrate/threads.py), as the tracing
+# kernel does, not in prange loops: numba builds and optimises a parallel gufunc around each
+# prange loop, seconds of compilation on every fresh machine for work that is the same either
+# way (runs are independent, and each range writes only its own runs' entries).
 def _importance(p, V, DV, s, kinds, vtols, starts, stops):
     """DP importances with the deviation at a point the largest of the criteria: the geometric
     one when ``p`` has points, and per row q of V (values) and DV (slopes) that of kinds[q] at
     value tolerance vtols[q]."""
+    imp = np.zeros(p.shape[0] if p.shape[0] > 0 else V.shape[1], np.float32)
+    run_ranges(_importance_range, starts.size, p, V, DV, s, kinds, vtols, starts, stops, imp)
+    return imp
+
+
+@numba.njit(cache=True, nogil=True)
+def _importance_range(start, stop, p, V, DV, s, kinds, vtols, starts, stops, imp):
     geometry = p.shape[0] > 0
-    n = p.shape[0] if geometry else V.shape[1]
-    imp = np.zeros(n, np.float32)
-    for r in numba.prange(starts.size):  # runs are independent
+    for r in range(start, stop):
         a, b = starts[r], stops[r] - 1
         imp[a] = np.inf
         imp[b] = np.inf
@@ -307,24 +316,35 @@ def _importance(p, V, DV, s, kinds, vtols, starts, stops):
             si[top], sj[top], sc[top] = i, k, e
             si[top + 1], sj[top + 1], sc[top + 1] = k, j, e
             top += 2
-    return imp
 
 
-@numba.njit(cache=True, parallel=True)
 def _select(points, imp, zrow, px, tol, extra, starts, stops):
     """Kept point ids as the strip buffer and the element indices.
 
     ids: the kept points of each run with -1 between runs (and at both ends), every entry twice,
     so strip vertex e = 2k + side reads prev/cur/next at ids[e], ids[e + 2], ids[e + 4].
     Runs are independent: the first pass marks and counts each run's kept points, the second
-    writes them where the counts before it put them (both parallel over runs).
+    writes them where the counts before it put them (both on threads over ranges of runs).
     """
     n_runs = starts.size
-    n = 0 if n_runs == 0 else stops.max()
+    n = 0 if n_runs == 0 else int(stops.max())
     keep = np.zeros(max(n, 1), np.uint8)
     kept = np.zeros(n_runs + 1, np.int64)  # kept points per run, then summed: before each run
+    run_ranges(_mark_range, n_runs, points, imp, zrow, px, tol, extra, starts, stops, keep, kept)
+    np.cumsum(kept, out=kept)
+    nk = int(kept[n_runs]) + n_runs + 1  # kept entries and a -1 before, between and after runs
+    ids = np.empty(2 * nk + 4, np.int32)
+    idx = np.empty(2 * int(kept[n_runs]) + n_runs, np.uint32)
+    ids[:2] = -1
+    ids[2 * nk:] = -1
+    run_ranges(_write_range, n_runs, starts, stops, keep, kept, ids, idx)
+    return ids, idx
+
+
+@numba.njit(cache=True, nogil=True)
+def _mark_range(start, stop, points, imp, zrow, px, tol, extra, starts, stops, keep, kept):
     half = 0.5 * tol
-    for r in numba.prange(n_runs):
+    for r in range(start, stop):
         a, b = starts[r], stops[r]
         c = 0
         for i in range(a, b):
@@ -337,14 +357,11 @@ def _select(points, imp, zrow, px, tol, extra, starts, stops):
             keep[i] = k
             c += k
         kept[r + 1] = c
-    for r in range(n_runs):
-        kept[r + 1] += kept[r]
-    nk = kept[n_runs] + n_runs + 1  # kept entries and a -1 before, between and after the runs
-    ids = np.empty(2 * nk + 4, np.int32)
-    idx = np.empty(2 * kept[n_runs] + n_runs, np.uint32)
-    ids[0] = ids[1] = -1
-    ids[2 * nk:] = -1
-    for r in numba.prange(n_runs):
+
+
+@numba.njit(cache=True, nogil=True)
+def _write_range(start, stop, starts, stops, keep, kept, ids, idx):
+    for r in range(start, stop):
         m = kept[r] + r + 1  # entry of the run's first kept point
         j = 2 * kept[r] + r  # its first strip index
         for i in range(starts[r], stops[r]):
@@ -356,7 +373,6 @@ def _select(points, imp, zrow, px, tol, extra, starts, stops):
                 j += 2
         ids[2 * m] = ids[2 * m + 1] = -1
         idx[j] = RESTART
-    return ids, idx
 
 
 def select(points, imp, view, px, tol, extra, starts, stops) -> tuple[np.ndarray, np.ndarray]:
