@@ -9,17 +9,21 @@ compile it too.
 
 ``WHAT`` names: a set of options from ``OPTION_SETS`` ("default" is what ``flowkit trace`` and
 ``flowkit.trace`` run with no option named; "all" is every set), or a scene file, whose trace
-options (with the attributes its styles read) are compiled.
+options (with the attributes its styles read) are compiled, and its views rendered small, for
+the renderer's level-of-detail kernels.
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numba.core import event
+
+LOG = logging.getLogger("flowkit.compile")
 
 # name -> (what it is, TraceOptions fields; "pathlines" runs the pathline integrator)
 OPTION_SETS = {
@@ -88,7 +92,7 @@ def _scene(path):
     from .scene.plan import make_plan
 
     plan = make_plan(load_scene(path))  # validates the file now, before anything compiles
-    return lambda: _trace(plan.options)
+    return lambda: _render(plan, _trace(plan.options))
 
 
 def _trace(opts):
@@ -96,7 +100,23 @@ def _trace(opts):
     from .integrate.trace import trace
 
     scalars = [a for a in opts.attributes if a not in ATTRIBUTES]
-    trace(stand_in(scalars or ("T",)), SEEDS, opts.replace(max_length=min(opts.max_length, 4.0)))
+    return trace(stand_in(scalars or ("T",)), SEEDS,
+                 opts.replace(max_length=min(opts.max_length, 4.0)))
+
+
+def _render(plan, lines) -> None:
+    """Each of the scene's views, small: the renderer's level of detail (render/simplify.py)
+    compiles here.  Without OpenGL only the tracing is warmed, and the log says so."""
+    from .render import LineRenderer
+    from .render.context import RenderContextError
+
+    scene = plan.scene
+    try:
+        with LineRenderer(lines) as r:
+            for v in scene.views.values():
+                r.render(scene.styles[v.style], (64, 36), v.camera, overlays=True)
+    except RenderContextError as e:
+        LOG.warning("the renderer's kernels are not compiled (no OpenGL here): %s", e)
 
 
 def _pathlines(opts):

@@ -42,3 +42,32 @@ def test_what_to_compile_is_checked_before_anything_compiles(tmp_path):
     with pytest.raises(ValueError, match="scene.toml"):
         warmup.jobs([str(bad)])
     assert [label for label, _ in warmup.jobs(["all"])] == list(warmup.OPTION_SETS)
+
+
+SCENE_RUN = """
+from numba.core import event
+compiled = []
+class C(event.Listener):
+    def on_start(self, ev):
+        pass
+    def on_end(self, ev):
+        compiled.append(ev.data["dispatcher"].py_func.__module__)
+event.register("numba:compile", C())
+import sys
+from flowkit.scene import run_scene
+run_scene(sys.argv[1], out_dir=sys.argv[2], cache_dir=sys.argv[2] + "/cache")
+print(sorted(set(m for m in compiled if m.startswith("flowkit"))))
+"""
+
+
+def test_a_compiled_scene_then_runs_without_compiling(tmp_path):
+    """``flowkit compile SCENE`` (what make install runs for the demo) compiles what the scene
+    runs: its trace options and the renderer's level-of-detail kernels, so the scene after it
+    compiles none of flowkit's functions."""
+    cache = tmp_path / "numba"
+    scene = ROOT / "examples" / "hotroom_scene.toml"
+    _compile(cache, str(scene))
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT))
+    out = subprocess.run([sys.executable, "-c", SCENE_RUN, str(scene), str(tmp_path / "out")],
+                         env=env, capture_output=True, text=True, timeout=900, check=True).stdout
+    assert out.strip().splitlines()[-1] == "[]", out

@@ -2,7 +2,8 @@
 
 WHAT is an option set (default, attributes, rk4, dop853, no-cell-aware, lockstep, rosenbrock,
 pathlines, or all of them) or a scene file (its trace options and the attributes its styles
-read); without WHAT, the default options.  Each is a short trace on a small stand-in field:
+read, and its views rendered small, which compiles the renderer's level-of-detail kernels);
+without WHAT, the default options.  Each is a short trace on a small stand-in field:
 the machine code depends on the options, not on the data, and numba's disk cache keeps it for
 every later process (a container image built with it, or every worker of a cluster pointed at
 one shared NUMBA_CACHE_DIR).  Prints what was compiled and the seconds it took.
