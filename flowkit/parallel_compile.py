@@ -142,6 +142,8 @@ def write_table(path: Path | None = None) -> Path:
     from flowkit import warmup
 
     field = warmup.stand_in()
+    # (the Rosenbrock and pathline kernels are nearly all their own code: a second process
+    # gained nothing measurable there)
     kernels = {"flowkit.integrate.kernel._advance_lines":
                lambda: flowkit.trace(field, warmup.SEEDS, max_length=4.0)}
     lines = ['"""The helpers each kernel\'s compilation asks for, with their argument types, in the',

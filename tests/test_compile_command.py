@@ -22,28 +22,6 @@ def _compile(cache: Path, *what: str) -> str:
                           capture_output=True, text=True, timeout=900, check=True).stdout
 
 
-def test_compile_then_a_second_process_finds_everything_cached(tmp_path):
-    cache = tmp_path / "numba"
-    first = _compile(cache)
-    m = re.search(r"^default: compiled (\d+) functions in ([\d.]+) s", first, re.MULTILINE)
-    assert m and int(m[1]) >= 5 and float(m[2]) > 1.0, first
-    assert f"cache: {cache}" in first
-    assert list(cache.rglob("kernel._advance_lines-*.nbi"))  # the tracing kernel is stored
-    second = _compile(cache)
-    assert re.search(r"^default: all from the cache \(", second, re.MULTILINE), second
-    assert "compiled 0 functions in 0.0 s" in second
-
-
-def test_what_to_compile_is_checked_before_anything_compiles(tmp_path):
-    with pytest.raises(ValueError, match="'bogus' is neither an option set .*default.*all"):
-        warmup.jobs(["default", "bogus"])
-    bad = tmp_path / "scene.toml"
-    bad.write_text("version = 1\n[trace]\nmethodd = 'rk4'\n")
-    with pytest.raises(ValueError, match="scene.toml"):
-        warmup.jobs([str(bad)])
-    assert [label for label, _ in warmup.jobs(["all"])] == list(warmup.OPTION_SETS)
-
-
 SCENE_RUN = """
 from numba.core import event
 compiled = []
@@ -60,14 +38,32 @@ print(sorted(set(m for m in compiled if m.startswith("flowkit"))))
 """
 
 
-def test_a_compiled_scene_then_runs_without_compiling(tmp_path):
-    """``flowkit compile SCENE`` (what make install runs for the demo) compiles what the scene
-    runs: its trace options and the renderer's level-of-detail kernels, so the scene after it
-    compiles none of flowkit's functions."""
+def test_compile_then_a_second_process_finds_everything_cached(tmp_path):
+    """``flowkit compile default SCENE`` (what make install runs for the demo) compiles what
+    the scene runs: its trace options and the renderer's level-of-detail kernels, so a second
+    compile finds everything cached and the scene after it compiles none of flowkit's
+    functions."""
     cache = tmp_path / "numba"
     scene = ROOT / "examples" / "hotroom_scene.toml"
-    _compile(cache, str(scene))
+    first = _compile(cache, "default", str(scene))
+    m = re.search(r"^default: compiled (\d+) functions in ([\d.]+) s", first, re.MULTILINE)
+    assert m and int(m[1]) >= 5 and float(m[2]) > 1.0, first
+    assert f"cache: {cache}" in first
+    assert list(cache.rglob("kernel._advance_lines-*.nbi"))  # the tracing kernel is stored
+    second = _compile(cache)
+    assert re.search(r"^default: all from the cache \(", second, re.MULTILINE), second
+    assert "compiled 0 functions in 0.0 s" in second
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT))
     out = subprocess.run([sys.executable, "-c", SCENE_RUN, str(scene), str(tmp_path / "out")],
                          env=env, capture_output=True, text=True, timeout=900, check=True).stdout
     assert out.strip().splitlines()[-1] == "[]", out
+
+
+def test_what_to_compile_is_checked_before_anything_compiles(tmp_path):
+    with pytest.raises(ValueError, match="'bogus' is neither an option set .*default.*all"):
+        warmup.jobs(["default", "bogus"])
+    bad = tmp_path / "scene.toml"
+    bad.write_text("version = 1\n[trace]\nmethodd = 'rk4'\n")
+    with pytest.raises(ValueError, match="scene.toml"):
+        warmup.jobs([str(bad)])
+    assert [label for label, _ in warmup.jobs(["all"])] == list(warmup.OPTION_SETS)
