@@ -452,7 +452,7 @@ def _dense(qd, comp, q, y0, hs, th):
     return y0 + hs * (th * acc)
 
 
-@helper  # (called at events only: inlined at each call site, it cost compile time, not speed)
+@inline
 def _root(qd, comp, q, y0, hs, target, sgn, thi):
     """θ in [0, thi] where the dense output of ``comp`` meets ``target``, going from
     sgn * (value - target) < 0 to >= 0: safeguarded Newton from the secant estimate."""
