@@ -12,7 +12,8 @@ optimisation stay here.  The machine code is the same, and so are the lines, bit
 cached helper carries its optimised LLVM bitcode, which the kernel links and inlines exactly
 as it links a helper compiled in its own process.
 
-Not started on one core, where numba's cache is not written (no writable folder), with
+Not started on one core (the CPU set this process may use: a one-CPU container counts one), where
+numba's cache is not written (no writable folder), with
 ``FLOWKIT_PARALLEL_COMPILE=0``, or when the disk cache already holds the kernel.  The helpers
 and their argument types are the table in ``helper_sigs.py``, written by
 ``python -m flowkit.parallel_compile --write`` from a default trace on an empty cache and
@@ -35,8 +36,15 @@ LOG = logging.getLogger("flowkit.compile")
 _started: set[str] = set()
 
 
+def _cores() -> int:
+    """The cores this process may run on (a container's CPU set, not the host's count)."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
 def enabled() -> bool:
-    return os.environ.get("FLOWKIT_PARALLEL_COMPILE", "1") != "0" and (os.cpu_count() or 1) > 1
+    return os.environ.get("FLOWKIT_PARALLEL_COMPILE", "1") != "0" and _cores() > 1
 
 
 def in_disk_cache(dispatcher) -> bool:

@@ -172,3 +172,25 @@ def test_import_leaves_scipy_integrate_unloaded():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.split()
     assert out == ["False", "True"]
+
+
+def test_second_compile_process_only_where_it_helps(monkeypatch):
+    """Not on one core (a container's CPU set counts, not the host's), not when switched off,
+    and never when numba's disk cache already holds the kernel (a warm machine starts none)."""
+    import flowkit
+    from flowkit import datasets, parallel_compile
+    from flowkit.integrate import kernel, seeds
+
+    flowkit.trace(datasets.hotroom(), seeds.line((1, 1, 1), (9, 1, 9), 4), max_length=1)
+    assert parallel_compile.in_disk_cache(kernel._advance_lines)
+    name = "flowkit.integrate.kernel._advance_lines"
+    monkeypatch.setattr(parallel_compile, "_started", set())
+    monkeypatch.setattr(kernel._advance_lines, "overloads", {})  # as in a fresh process
+    assert parallel_compile.start(name, kernel._advance_lines) is None  # cached: none started
+    monkeypatch.setattr(parallel_compile, "_cores", lambda: 2)
+    assert parallel_compile.enabled()
+    monkeypatch.setenv("FLOWKIT_PARALLEL_COMPILE", "0")
+    assert not parallel_compile.enabled()
+    monkeypatch.delenv("FLOWKIT_PARALLEL_COMPILE")
+    monkeypatch.setattr(parallel_compile, "_cores", lambda: 1)
+    assert not parallel_compile.enabled()
