@@ -12,10 +12,10 @@ optimisation stay here.  The machine code is the same, and so are the lines, bit
 cached helper carries its optimised LLVM bitcode, which the kernel links and inlines exactly
 as it links a helper compiled in its own process.
 
-Not started on one core (the CPU set this process may use: a one-CPU container counts one), where
-numba's cache is not written (no writable folder), with
-``FLOWKIT_PARALLEL_COMPILE=0``, or when the disk cache already holds the kernel.  The helpers
-and their argument types are the table in ``helper_sigs.py``, written by
+Not started on one core (the CPU set this process may use: a one-CPU container counts one),
+where numba's cache is not written (no writable folder), with ``FLOWKIT_PARALLEL_COMPILE=0``,
+or when the disk cache already holds the kernel.  The helpers and their argument types are the
+table in ``helper_sigs.py``, written by
 ``python -m flowkit.parallel_compile --write`` from a default trace on an empty cache and
 checked by tests/test_compile_cost.py.  A stale entry only wastes the other process's time (it
 compiles a signature nobody asks for); it never changes what this process runs.
