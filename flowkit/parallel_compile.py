@@ -13,8 +13,9 @@ cached helper carries its optimised LLVM bitcode, which the kernel links and inl
 as it links a helper compiled in its own process.
 
 Not started on one core (the CPU set this process may use: a one-CPU container counts one),
-where numba's cache is not written (no writable folder), with ``FLOWKIT_PARALLEL_COMPILE=0``,
-or when the disk cache already holds the kernel.  The helpers and their argument types are the
+where numba's cache is not written (no writable folder), where ``sys.executable`` is not a plain
+Python (an application that embeds one), with ``FLOWKIT_PARALLEL_COMPILE=0``, or when the disk
+cache already holds the kernel.  The helpers and their argument types are the
 table in ``helper_sigs.py``, written by
 ``python -m flowkit.parallel_compile --write`` from a default trace on an empty cache and
 checked by tests/test_compile_cost.py.  A stale entry only wastes the other process's time (it
@@ -43,8 +44,18 @@ def _cores() -> int:
     return os.cpu_count() or 1
 
 
+def _python() -> str | None:
+    """This interpreter as a program to start, or None where sys.executable is not a plain
+    Python (a frozen application, or one that embeds Python: Blender, uWSGI, a GUI)."""
+    exe = sys.executable
+    if getattr(sys, "frozen", False) or not exe or not Path(exe).name.lower().startswith("python"):
+        return None
+    return exe
+
+
 def enabled() -> bool:
-    return os.environ.get("FLOWKIT_PARALLEL_COMPILE", "1") != "0" and _cores() > 1
+    return (os.environ.get("FLOWKIT_PARALLEL_COMPILE", "1") != "0" and _cores() > 1
+            and _python() is not None)
 
 
 def in_disk_cache(dispatcher) -> bool:
@@ -77,10 +88,10 @@ def start(kernel: str, dispatcher) -> subprocess.Popen | None:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         p for p in (root, os.environ.get("PYTHONPATH", "")) if p))
     try:
-        proc = subprocess.Popen([sys.executable, "-m", "flowkit.parallel_compile", kernel],
+        proc = subprocess.Popen([_python(), "-m", "flowkit.parallel_compile", kernel],
                                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL, env=env)
-    except OSError as e:  # no interpreter to start (an embedded Python): compile here alone
+    except OSError as e:  # the interpreter cannot be started: compile here alone
         LOG.debug("no second compile process: %s", e)
         return None
     threading.Thread(target=proc.wait, daemon=True, name="flowkit-compile-reaper").start()

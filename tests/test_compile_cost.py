@@ -176,6 +176,7 @@ def test_import_leaves_scipy_integrate_unloaded():
 
 def test_second_compile_process_only_where_it_helps(monkeypatch):
     """Not on one core (a container's CPU set counts, not the host's), not when switched off,
+    not where sys.executable is a program that embeds Python (it would be started instead),
     and never when numba's disk cache already holds the kernel (a warm machine starts none)."""
     import flowkit
     from flowkit import datasets, parallel_compile
@@ -194,3 +195,7 @@ def test_second_compile_process_only_where_it_helps(monkeypatch):
     monkeypatch.delenv("FLOWKIT_PARALLEL_COMPILE")
     monkeypatch.setattr(parallel_compile, "_cores", lambda: 1)
     assert not parallel_compile.enabled()
+    monkeypatch.setattr(parallel_compile, "_cores", lambda: 2)
+    for exe in ("/opt/blender/blender", "/usr/bin/uwsgi", ""):  # Python embedded in a program
+        monkeypatch.setattr(sys, "executable", exe)
+        assert not parallel_compile.enabled()
