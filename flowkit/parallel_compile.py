@@ -15,11 +15,11 @@ as it links a helper compiled in its own process.
 Not started on one core (the CPU set this process may use: a one-CPU container counts one),
 where numba's cache is not written (no writable folder), where ``sys.executable`` is not a plain
 Python (an application that embeds one), with ``FLOWKIT_PARALLEL_COMPILE=0``, or when the disk
-cache already holds the kernel.  The helpers and their argument types are the
-table in ``helper_sigs.py``, written by
-``python -m flowkit.parallel_compile --write`` from a default trace on an empty cache and
-checked by tests/test_compile_cost.py.  A stale entry only wastes the other process's time (it
-compiles a signature nobody asks for); it never changes what this process runs.
+cache already holds the kernel.  The helpers and their argument types are the table in
+``helper_sigs.py``, written by ``python -m flowkit.parallel_compile --write`` from a default
+trace on an empty cache and checked by tests/test_compile_cost.py.  A stale entry only wastes
+the other process's time (it compiles a signature nobody asks for); it never changes what this
+process runs.
 """
 
 from __future__ import annotations
