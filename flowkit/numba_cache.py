@@ -65,3 +65,18 @@ def ensure_location() -> str | None:
     uid = os.getuid() if hasattr(os, "getuid") else "user"
     config.CACHE_DIR = str(Path(tempfile.gettempdir()) / f"flowkit-numba-{uid}")
     return config.CACHE_DIR
+
+
+def in_disk_cache(dispatcher, sig=None) -> bool:
+    """Whether numba's disk cache holds ``dispatcher`` compiled for this CPU and this source,
+    for ``sig`` (argument types) or, without one, for any signature: its index read as numba's
+    ``Cache.load_overload`` reads it; False where that cannot be read."""
+    try:
+        cache = dispatcher._cache
+        key = cache._index_key(sig, dispatcher.targetctx.codegen())
+        index = cache._cache_file._load_index()
+        if sig is not None:
+            return key in index
+        return any(k[1:] == key[1:] for k in index)
+    except Exception:  # noqa: BLE001 (numba internals: then the caller compiles as usual)
+        return False

@@ -33,6 +33,8 @@ import textwrap
 import threading
 from pathlib import Path
 
+from .numba_cache import in_disk_cache
+
 LOG = logging.getLogger("flowkit.compile")
 _started: set[str] = set()
 
@@ -56,18 +58,6 @@ def _python() -> str | None:
 def enabled() -> bool:
     return (os.environ.get("FLOWKIT_PARALLEL_COMPILE", "1") != "0" and _cores() > 1
             and _python() is not None)
-
-
-def in_disk_cache(dispatcher) -> bool:
-    """Whether numba's disk cache holds a compiled ``dispatcher`` for this CPU and this source
-    (any signature): its index read as numba's ``Cache.load_overload`` reads it; False where
-    that cannot be read."""
-    try:
-        cache = dispatcher._cache
-        tail = cache._index_key((), dispatcher.targetctx.codegen())[1:]
-        return any(key[1:] == tail for key in cache._cache_file._load_index())
-    except Exception:  # noqa: BLE001 (numba internals: then compile as usual)
-        return False
 
 
 def _writes_cache(dispatcher) -> bool:
@@ -98,19 +88,16 @@ def start(kernel: str, dispatcher) -> subprocess.Popen | None:
     return proc
 
 
-def compile_helpers(kernel: str) -> int:
-    """Compile ``kernel``'s helpers, last asked for first; returns how many compiled or loaded
-    (an entry that no longer matches its function is skipped)."""
+def compile_helpers(kernel: str) -> None:
+    """Compile ``kernel``'s helpers, last asked for first (an entry that no longer matches its
+    function is skipped)."""
     from .helper_sigs import HELPERS
 
-    done = 0
     for module, name, sig in reversed(HELPERS[kernel]):
         try:
             getattr(importlib.import_module(module), name).compile(sig)
-            done += 1
         except Exception as e:  # noqa: BLE001 (a stale entry: the kernel's process compiles it)
             LOG.debug("%s.%s%s: %s", module, name, sig, e)
-    return done
 
 
 # -- writing the table ------------------------------------------------------------------------
@@ -119,8 +106,6 @@ def _type_src(ty) -> str:
 
     if isinstance(ty, types.Array) and ty.layout == "C" and ty.mutable and ty.ndim <= 4:
         return f"{_type_src(ty.dtype)}{ty.ndim}"  # F2: a C-contiguous 2-d float64 array
-    if isinstance(ty, types.UniTuple):
-        return f"t.UniTuple({_type_src(ty.dtype)}, {ty.count})"
     names = {types.float64: "F", types.int64: "I", types.boolean: "B"}
     if ty in names:
         return names[ty]

@@ -182,11 +182,11 @@ def test_second_compile_process_only_where_it_helps(monkeypatch):
     not where sys.executable is a program that embeds Python (it would be started instead),
     and never when numba's disk cache already holds the kernel (a warm machine starts none)."""
     import flowkit
-    from flowkit import datasets, parallel_compile
+    from flowkit import datasets, numba_cache, parallel_compile
     from flowkit.integrate import kernel, seeds
 
     flowkit.trace(datasets.hotroom(), seeds.line((1, 1, 1), (9, 1, 9), 4), max_length=1)
-    assert parallel_compile.in_disk_cache(kernel._advance_lines)
+    assert numba_cache.in_disk_cache(kernel._advance_lines)
     name = "flowkit.integrate.kernel._advance_lines"
     monkeypatch.setattr(parallel_compile, "_started", set())
     monkeypatch.setattr(kernel._advance_lines, "overloads", {})  # as in a fresh process

@@ -16,6 +16,7 @@ from flowkit.fields.grid import Grid
 from flowkit.integrate import kernel as K
 from flowkit.integrate import lanes
 from flowkit.integrate.reasons import Reason
+from flowkit.numba_cache import in_disk_cache
 
 
 def _abc(holes=False, zero=False):
@@ -324,7 +325,7 @@ def test_scalar_kernel_traces_while_the_lock_step_compiles(monkeypatch):
     gate, ready = threading.Event(), []
     monkeypatch.setattr(lanes, "WAIT", False)
     monkeypatch.setattr(lanes, "_pending", {})
-    monkeypatch.setattr(lanes, "_in_cache", lambda sig: False)
+    monkeypatch.setattr(lanes, "in_disk_cache", lambda disp, sig: False)
     monkeypatch.setattr(lanes, "_compiled", lambda sig: bool(ready))
     monkeypatch.setattr(lanes, "_compile", lambda sig: gate.wait(30) and ready.append(sig))
     f, s = _abc(True), _seeds()
@@ -352,5 +353,5 @@ def test_lock_step_found_in_the_disk_cache():
     L = _first_launch(f, _seeds(5), method="rk4", step=0.1, max_length=1.0, cell_aware=False)
     sig = tuple(typeof(a) for a in lanes.lockstep_args(L))
     lanes.lockstep.compile(sig)
-    assert lanes._in_cache(sig)
-    assert not lanes._in_cache(sig[:-1] + (typeof(np.zeros(3, np.int32)),))
+    assert in_disk_cache(lanes.lockstep, sig)
+    assert not in_disk_cache(lanes.lockstep, sig[:-1] + (typeof(np.zeros(3, np.int32)),))

@@ -39,6 +39,7 @@ import numpy as np
 from numba import njit, prange, typeof
 
 from ..jit import inline
+from ..numba_cache import in_disk_cache
 from .kernel import R_MAXLEN, R_MAXTIME, _next_step, _prefetch, _put, _retry
 from .kernel import advance as advance_one_by_one
 from .methods import LOCKSTEP_STAGES as SMAX  # stages of the eligible methods
@@ -664,17 +665,6 @@ def _compiled(sig) -> bool:
     return sig in lockstep.overloads
 
 
-def _in_cache(sig) -> bool:
-    """Whether numba's disk cache holds ``lockstep`` for sig (its index, read as numba's
-    ``Cache.load_overload`` reads it; False where that cannot be read)."""
-    try:
-        cache = lockstep._cache
-        key = cache._index_key(sig, lockstep.targetctx.codegen())
-        return key in cache._cache_file._load_index()
-    except Exception:  # noqa: BLE001 (numba internals: then compile in the background)
-        return False
-
-
 def _compile(sig) -> None:
     try:
         lockstep.compile(sig)
@@ -690,7 +680,7 @@ def _lockstep_ready(args) -> bool:
     sig = tuple(typeof(a) for a in args)
     if _compiled(sig):
         return True
-    if sig not in _pending and _in_cache(sig):
+    if sig not in _pending and in_disk_cache(lockstep, sig):
         lockstep.compile(sig)
         return True
     if sig not in _pending:
