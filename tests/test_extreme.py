@@ -202,3 +202,35 @@ def test_huge_and_tiny_speed_units(scale, aware):
     _check(L, [Reason.MAX_TIME], 1000)
     np.testing.assert_allclose(L.points[-1], SolidBodyRotation().trajectory([[0, -0.5, 0]], 6.0)[0],
                                atol=1e-4)
+
+
+WALL_DIRECTION = np.array([0.3, 0.1, 1.0])
+
+
+def no_slip_wall():
+    """A uniform flow along WALL_DIRECTION runs onto the wall z = 1, whose nodes are at rest,
+    through a thin top cell, where w = 100 (1 - z): the exact line from a seed runs straight on
+    to seed + (1 - z0) WALL_DIRECTION."""
+    axis = np.linspace(0.0, 1.0, 5)
+    g = Grid.from_axes(axis, axis, np.array([0.0, 0.25, 0.5, 0.75, 0.99, 1.0]))
+    v = np.broadcast_to(WALL_DIRECTION, (5, 5, 6, 3)).copy()
+    v[:, :, -1] = 0.0
+    return Field(g, v)
+
+
+@AWARE
+@pytest.mark.parametrize("backend", ["numba", "opencl"])
+def test_flow_onto_a_no_slip_wall_stops_on_it(aware, backend):
+    # Within the tolerance of the wall the explicit steps outgrow their stability interval and
+    # the error estimate, proportional to the distance, still passes: without the test on the
+    # line's progress (kernel._stalled) these lines hovered there until max_steps, plain and
+    # cell-aware alike
+    if backend == "opencl":
+        pytest.importorskip("pyopencl")
+    seeds = np.array([[0.1, 0.2, 0.1], [0.5, 0.5, 0.6], [0.2, 0.6, 0.995], [0.3, 0.3, 0.98]])
+    L = _check(trace(no_slip_wall(), seeds, cell_aware=aware, backend=backend, max_time=1e6,
+                     max_steps=100_000, rtol=1e-6, atol=1e-6),
+               [Reason.STAGNATION] * 4, 200)
+    # the end within a few tolerances of the exact point on the wall
+    np.testing.assert_allclose(_last(L), seeds + (1.0 - seeds[:, 2:]) * WALL_DIRECTION,
+                               atol=5e-6, rtol=0)

@@ -57,7 +57,7 @@ def test_constants_are_plain_ints_shared_by_every_kernel_module():
         assert type(value) is int, name  # numba folds module-level ints into the machine code
         assert getattr(schema, name) == value
         assert getattr(K, name) == value, name  # kernel.X: the same constant, re-exported
-    assert schema.FLOAT_STATE.size == schema.NF == 58 and schema.FLOAT_STATE["S_Q"] == 25
+    assert schema.FLOAT_STATE.size == schema.NF == 62 and schema.FLOAT_STATE["S_Q"] == 25
     assert schema.INT_STATE["I_CELL"] + 3 == schema.I_LASTREJ
     for mod in (lanes, pathlines, rosenbrock):
         for name in ("I_STATUS", "I_REASON", "I_NACC", "S_Y", "O_RTOL", "DONE"):

@@ -102,6 +102,7 @@ from .schema import (  # noqa: F401
     PASS_SETUP,
     QMAX,
     RUNNING,
+    S_ANCHOR,
     S_DEP,
     S_ERRP,
     S_H,
@@ -127,6 +128,7 @@ from .threads import run_ranges
 # like h^2, so the longest crossing step has its own controller (S_HK): shrunk by a rejected
 # crossing, grown on every face the line steps through.
 KINK_CELLS, KINK_GROW, KINK_SHRINK_MIN = 3.0, 1.15, 0.1
+
 
 R_OUT = int(Reason.OUT_OF_DOMAIN)
 R_MAXLEN = int(Reason.MAX_LENGTH)
@@ -639,6 +641,34 @@ def _retry(hs, err, nan, hmin, safety, facmin, expo1):
 
 
 @inline
+def _stalled(sf, l, y1, t1, fo):
+    """The stagnation test on the line's progress, after an accepted step to y1 at time t1.
+
+    The speed test at the loop head reads the field at the line's point.  Where the flow runs
+    onto a no-slip wall (nodes at rest), a line that comes within its tolerance of the wall
+    takes explicit steps far beyond their stability interval: the error estimate, proportional
+    to that distance, still passes, and the line hovers there, or cycles toward the wall and
+    back, at a point where the field is still faster than the threshold, until ``max_steps``.
+    So line l also stagnates when it has not left the ball of its tolerance (atol + rtol |y|
+    per axis) around its anchor for longer than the stagnation speed needs to cross that
+    tolerance: it moved slower than the threshold.  Leaving the ball moves the anchor (S_ANCHOR:
+    position, then time) to y1, t1."""
+    d2 = 0.0
+    tol = np.inf
+    for a in range(3):
+        x = sf[l, S_ANCHOR + a]
+        sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(x), abs(y1[a]))
+        d2 += ((y1[a] - x) / sc) ** 2
+        tol = min(tol, sc)
+    if d2 > 1.0:
+        for a in range(3):
+            sf[l, S_ANCHOR + a] = y1[a]
+        sf[l, S_ANCHOR + 3] = t1
+        return False
+    return abs(t1 - sf[l, S_ANCHOR + 3]) * fo[O_STAG] > tol
+
+
+@inline
 def _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax, beta, expo1):
     """Hairer's PI controller with Gustafsson's memory, after an accepted step of hs (h: the
     step the controller had asked for): (next step, errp, errp ** beta).  Shared with the
@@ -778,6 +808,8 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, kexp, fo,
     _store(sf, si, l, y, k, 0.0, h, 1e-4, zero, zero, np.bool_(False), abs(h), zero, zero, zero,
            cf, ci)
     si[l, I_PEND] = si[l, I_FINAL] = 0
+    for a in range(4):  # the seed, at time 0
+        sf[l, S_ANCHOR + a] = y[a]
     si[l, I_STATUS] = RUNNING
     sf[l, S_LAST_S] = -np.inf
     si[l, I_M] = 0
@@ -977,6 +1009,10 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 continue
 
             # accepted
+            t1 = (d * lim_ind if hit_lim else tau + hs) if param == 0 else dep1
+            if adaptive and _stalled(sf, l, y1, t1, fo):
+                reason = R_STAG
+                break
             if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
                 si[l, I_STIFF] = stiff_update(si[l, I_STIFF], dp5_hlambda(hs, k, ys, y1))
             if adaptive:

@@ -80,6 +80,7 @@ from .schema import (
     PASS_FULL,
     PASS_SETUP,
     RUNNING,
+    S_ANCHOR,
     S_DEP,
     S_ERRP,
     S_H,
@@ -375,8 +376,8 @@ def _error(g, n_err, mw, has_e2, fo, y, y1, hs, k, e5, e3, tmp, err, fin):
 
 
 @inline
-def _hand_back(g, w, l, r_ind, y, tau, h, errp, k, n_acc, n_rej, lrej, stiff, moved, done, kn,
-               kb, sf, si):
+def _hand_back(g, w, l, r_ind, y, tau, h, errp, k, n_acc, n_rej, lrej, stiff, anc, moved, done,
+               kn, kb, sf, si):
     """Lane w's line l back into its state rows, for ``kernel._advance_lines`` to continue
     (and DONE with reason r_ind where its last step met the parameter's limit); kn, kb: its
     cell after its last step."""
@@ -390,6 +391,8 @@ def _hand_back(g, w, l, r_ind, y, tau, h, errp, k, n_acc, n_rej, lrej, stiff, mo
         sf[l, S_ERRP] = errp[g, w]
         for a in range(4):
             sf[l, S_K0 + a] = k[g, 0, a, w]
+        for a in range(4):
+            sf[l, S_ANCHOR + a] = anc[g, a, w]
         si[l, I_NACC], si[l, I_NREJ], si[l, I_LASTREJ] = n_acc[g, w], n_rej[g, w], lrej[g, w]
         si[l, I_STIFF] = stiff[g, w]
     if done[g, w] != 0:
@@ -438,6 +441,8 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
     # every lane's state; a stopped lane keeps being computed (its values unused), so zeros
     y, yt, y1 = np.zeros((G, 4, W)), np.zeros((G, 3, W)), np.zeros((G, 4, W))
     ys, stiff = np.zeros((G, 3, W)), np.zeros((G, W), np.int64)  # the stiffness test's
+    # kernel._stalled's anchor (position, time), and 1 where the step tried leaves its ball
+    anc, out = np.zeros((G, 4, W)), np.zeros((G, W), np.int8)
     k = np.zeros((G, SMAX, 4, W))
     tau, h, d = np.zeros((G, W)), np.zeros((G, W)), np.ones((G, W))
     errp, errpb, err = np.zeros((G, W)), np.zeros((G, W)), np.zeros((G, W))
@@ -487,7 +492,7 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
                     continue
                 if slot[g, w] >= 0:
                     _hand_back(g, w, active[slot[g, w]], r_ind, y, tau, h, errp, k, n_acc,
-                               n_rej, lrej, stiff, moved, done, kn, kb, sf, si)
+                               n_rej, lrej, stiff, anc, moved, done, kn, kb, sf, si)
                     slot[g, w] = -1
                 while nxt < end and slot[g, w] < 0:
                     l = active[nxt]
@@ -504,6 +509,8 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
                             k[g, 0, a, w] = sf[l, S_K0 + a]
                         n_acc[g, w], n_rej[g, w] = si[l, I_NACC], si[l, I_NREJ]
                         lrej[g, w], stiff[g, w] = si[l, I_LASTREJ], si[l, I_STIFF]
+                        for a in range(4):
+                            anc[g, a, w] = sf[l, S_ANCHOR + a]
                         for a in range(3):  # the scalar kernel's cached cell
                             i = si[l, I_CELL + a]
                             cn[g, a, w], cn[g, 3 + a, w] = i, _up(sizes[a], i, strides[a])
@@ -586,6 +593,20 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
                     good &= int(dlo[a] <= y1[g, a, w]) & int(y1[g, a, w] <= dhi[a])
                 big = adaptive & int(err[g, w] > 1.0)
                 act[g, w] = act[g, w] * (2 * big + (1 - big) * good)
+            if adaptive != 0:  # kernel._stalled: the scalar kernel stops the line at that step
+                for w in range(W):
+                    d2, tol = 0.0, np.inf
+                    for a in range(3):
+                        x = anc[g, a, w]
+                        sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(x), abs(y1[g, a, w]))
+                        d2 += ((y1[g, a, w] - x) / sc) ** 2
+                        tol = min(tol, sc)
+                    o = int(d2 > 1.0)
+                    out[g, w] = o
+                    t1 = (y1[g, 3, w] if param != 0 else
+                          (d[g, w] * lim_ind if hit[g, w] != 0 else tau[g, w] + hs[g, w]))
+                    stop = (1 - o) & int(abs(t1 - anc[g, 3, w]) * stag > tol) & int(act[g, w] == 1)
+                    act[g, w] = act[g, w] * (1 - stop)
             # the step size control (a loop of scalar code: its powers), kernel's controller
             for w in range(W):
                 if act[g, w] == 2:
@@ -628,6 +649,13 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
                 done[g, w] |= good & last  # the limit met: reason r_ind, as the scalar kernel
                 live[g, w] = (good & (1 - last)) | rej
                 emit[g, w] = good & (int(hsw != 0.0) | int(tau0 != tau1))
+            if adaptive != 0:  # a step out of the ball moves the anchor there
+                for w in range(W):
+                    mv = int(act[g, w] == 1) & out[g, w]
+                    for a in range(3):
+                        anc[g, a, w] = y[g, a, w] if mv != 0 else anc[g, a, w]
+                    t = tau[g, w] if param == 0 else y[g, 3, w]
+                    anc[g, 3, w] = t if mv != 0 else anc[g, 3, w]
             for w in range(W):
                 if emit[g, w] != 0:
                     t_out = tau[g, w] if param == 0 else y[g, 3, w]
@@ -637,7 +665,7 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
         for w in range(W):  # hand the last lines back
             if slot[g, w] >= 0:
                 _hand_back(g, w, active[slot[g, w]], r_ind, y, tau, h, errp, k, n_acc, n_rej,
-                           lrej, stiff, moved, done, kn, kb, sf, si)
+                           lrej, stiff, anc, moved, done, kn, kb, sf, si)
 
 
 def lockstep_args(launch):

@@ -41,7 +41,9 @@ class TraceOptions:
     cell_aware   steps end on the faces of the cell they start in (see docs/integrator.md)
     cross_faces  cell-aware adaptive steps may cross faces where their error estimate allows,
                  so that a looser tolerance costs less; False: every step ends on a face
-    stagnation   absolute speed below which a line stops; None: stagnation_rel * typical speed
+    stagnation   absolute speed below which a line stops: the field's at the line's point, or
+                 (adaptive methods) the line's own progress over its tolerance, which stops
+                 lines hovering at no-slip walls; None: stagnation_rel * typical speed
     spacing      resample vertices every `spacing` of arc length (dense output)
     count        resample each line to `count` vertices evenly spaced in arc length
     attributes   per-vertex attributes to compute (see flowkit.integrate.attributes)

@@ -72,6 +72,7 @@ FLOAT_STATE = Layout("sf", "NF", (
     Column("S_LAST_S", 1, "arc length of the last emitted vertex"),
     Column("S_Q", 4 * QMAX, "pending step's dense coefficients, 4 components x QMAX"),
     Column("S_HK", 1, "the longest step across faces that the kink error allowed (P_CROSS)"),
+    Column("S_ANCHOR", 4, "position and time the line's progress is measured from (kernel._stalled)"),
 ))
 INT_STATE = Layout("si", "NI", (
     Column("I_STATUS", 1, "NEW, RUNNING or DONE"),
