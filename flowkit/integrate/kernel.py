@@ -129,7 +129,6 @@ from .threads import run_ranges
 # crossing, grown on every face the line steps through.
 KINK_CELLS, KINK_GROW, KINK_SHRINK_MIN = 3.0, 1.15, 0.1
 
-
 R_OUT = int(Reason.OUT_OF_DOMAIN)
 R_MAXLEN = int(Reason.MAX_LENGTH)
 R_MAXTIME = int(Reason.MAX_TIME)

@@ -391,7 +391,6 @@ def _hand_back(g, w, l, r_ind, y, tau, h, errp, k, n_acc, n_rej, lrej, stiff, an
         sf[l, S_ERRP] = errp[g, w]
         for a in range(4):
             sf[l, S_K0 + a] = k[g, 0, a, w]
-        for a in range(4):
             sf[l, S_ANCHOR + a] = anc[g, a, w]
         si[l, I_NACC], si[l, I_NREJ], si[l, I_LASTREJ] = n_acc[g, w], n_rej[g, w], lrej[g, w]
         si[l, I_STIFF] = stiff[g, w]
