@@ -50,6 +50,7 @@ HELPERS = {
         ("flowkit.integrate.kernel", "_err_rescaled", (F, F2, F1, F1, I, B, F1, F1, F1,)),
         ("flowkit.integrate.kernel", "_step_end", (F1, F2, F, F1, F1, F1, I, B, B, F1, F1,)),
         ("flowkit.integrate.kernel", "_retry", (F, F, B, F, F, F, F,)),
+        ("flowkit.integrate.kernel", "_from_anchor", (F, F, F, F, F, F, F1,)),
         ("flowkit.integrate.kernel", "_stalled", (F2, I, F1, F, F1,)),
         ("flowkit.integrate.stiffness", "hlambda", (F, F, F,)),
         ("flowkit.integrate.stiffness", "dp5_hlambda", (F, F2, F1, F1,)),

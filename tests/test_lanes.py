@@ -176,21 +176,25 @@ def test_stiffness_test_in_lock_step():
     assert np.all(np.asarray(lines.line_data["stiff"]) == 1)
 
 
-@pytest.mark.parametrize("method", ["dopri5", "bs23"])
-def test_bit_identical_where_lines_stall_at_a_wall(method):
+def test_bit_identical_where_lines_stall_at_a_wall():
     """A lane hands the step that would stall its line (kernel._stalled) to the scalar kernel,
-    which stops the line there (stagnation); the anchor of the test travels with the line."""
+    which stops the line there (stagnation); the anchor of the test travels with the line.
+    dopri5, the default, is the method whose lines hover at this wall (dop853's and bs23's reach
+    its face or slow below the threshold)."""
     from test_extreme import WALL_DIRECTION, no_slip_wall
 
     seeds = np.random.default_rng(5).uniform([0.02, 0.02, 0.02], [0.6, 0.8, 0.98], (100, 3))
-    lines = _same(no_slip_wall(), seeds, method=method, rtol=1e-6, atol=1e-6, max_time=1e6,
-                  max_steps=100_000, cell_aware=False)
+    field = no_slip_wall()
+    lines = _same(field, seeds, rtol=1e-6, atol=1e-6, max_time=1e6, max_steps=100_000,
+                  cell_aware=False, stagnation=1e-6)
     # every line ends on the wall (stagnation, or a step that reached its face), none at
-    # max_steps
+    # max_steps; lines stopped by their progress, where the field is faster than the threshold
     reasons = np.asarray(lines.line_data["reason"])
-    assert set(reasons.tolist()) <= {K.R_STAG, K.R_OUT} and np.any(reasons == K.R_STAG)
-    assert np.all(np.asarray(lines.line_data["n_accepted"]) < 400)
+    assert set(reasons.tolist()) <= {K.R_STAG, K.R_OUT}
     ends = lines.points[lines.offsets[1:] - 1]
+    speeds = np.linalg.norm(field.sample(ends[reasons == K.R_STAG])[0], axis=1)
+    assert np.sum(speeds > 1e-6) >= 10, speeds
+    assert np.all(np.asarray(lines.line_data["n_accepted"]) < 400)
     np.testing.assert_allclose(ends, seeds + (1.0 - seeds[:, 2:]) * WALL_DIRECTION, atol=5e-6,
                                rtol=0)
 

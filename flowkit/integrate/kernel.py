@@ -640,6 +640,21 @@ def _retry(hs, err, nan, hmin, safety, facmin, expo1):
 
 
 @inline
+def _from_anchor(ax, ay, az, px, py, pz, fo):
+    """(squared distance from the anchor a to the point p in units of the tolerance, the
+    smallest per-axis tolerance): ``_stalled``'s measures, shared with the lanes."""
+    d2 = 0.0
+    tol = np.inf
+    for i in range(3):
+        x = ax if i == 0 else (ay if i == 1 else az)
+        p = px if i == 0 else (py if i == 1 else pz)
+        sc = fo[O_ATOL + i] + fo[O_RTOL + i] * max(abs(x), abs(p))
+        d2 += ((p - x) / sc) ** 2
+        tol = min(tol, sc)
+    return d2, tol
+
+
+@inline
 def _stalled(sf, l, y1, t1, fo):
     """The stagnation test on the line's progress, after an accepted step to y1 at time t1.
 
@@ -652,13 +667,8 @@ def _stalled(sf, l, y1, t1, fo):
     per axis) around its anchor for longer than the stagnation speed needs to cross that
     tolerance: it moved slower than the threshold.  Leaving the ball moves the anchor (S_ANCHOR:
     position, then time) to y1, t1."""
-    d2 = 0.0
-    tol = np.inf
-    for a in range(3):
-        x = sf[l, S_ANCHOR + a]
-        sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(x), abs(y1[a]))
-        d2 += ((y1[a] - x) / sc) ** 2
-        tol = min(tol, sc)
+    d2, tol = _from_anchor(sf[l, S_ANCHOR], sf[l, S_ANCHOR + 1], sf[l, S_ANCHOR + 2], y1[0],
+                           y1[1], y1[2], fo)
     if d2 > 1.0:
         for a in range(3):
             sf[l, S_ANCHOR + a] = y1[a]
@@ -1008,8 +1018,8 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 continue
 
             # accepted
-            t1 = (d * lim_ind if hit_lim else tau + hs) if param == 0 else dep1
-            if adaptive and _stalled(sf, l, y1, t1, fo):
+            if adaptive and _stalled(sf, l, y1, (d * lim_ind if hit_lim else tau + hs)
+                                     if param == 0 else dep1, fo):
                 reason = R_STAG
                 break
             if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step

@@ -40,7 +40,7 @@ from numba import njit, prange, typeof
 
 from ..jit import inline
 from ..numba_cache import in_disk_cache
-from .kernel import R_MAXLEN, R_MAXTIME, _next_step, _prefetch, _put, _retry
+from .kernel import R_MAXLEN, R_MAXTIME, _from_anchor, _next_step, _prefetch, _put, _retry
 from .kernel import advance as advance_one_by_one
 from .methods import LOCKSTEP_STAGES as SMAX  # stages of the eligible methods
 from .methods import lockstep_tableau
@@ -594,12 +594,8 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
                 act[g, w] = act[g, w] * (2 * big + (1 - big) * good)
             if adaptive != 0:  # kernel._stalled: the scalar kernel stops the line at that step
                 for w in range(W):
-                    d2, tol = 0.0, np.inf
-                    for a in range(3):
-                        x = anc[g, a, w]
-                        sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(x), abs(y1[g, a, w]))
-                        d2 += ((y1[g, a, w] - x) / sc) ** 2
-                        tol = min(tol, sc)
+                    d2, tol = _from_anchor(anc[g, 0, w], anc[g, 1, w], anc[g, 2, w],
+                                           y1[g, 0, w], y1[g, 1, w], y1[g, 2, w], fo)
                     o = int(d2 > 1.0)
                     out[g, w] = o
                     t1 = (y1[g, 3, w] if param != 0 else
