@@ -20,8 +20,10 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/flowkit demo
 
+# on the machine's cores, at most 4 (each worker compiles the kernels its tests meet first; the
+# numba cache on disk is shared, so a kernel one worker compiled, the others load)
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --maxprocesses 4
 
 # Peers side by side (VTK, streamtracer, scipy); each script prints its own table and ratios.
 BENCHES := bench_trace bench_opencl bench_render bench_styles bench_scene bench_distributed lines_io
