@@ -58,4 +58,16 @@ HELPERS = {
         ("flowkit.integrate.kernel", "_next_step", (F, F, F, F, F, B, F, F, F, F, F,)),
         ("flowkit.integrate.kernel", "pack", (I1, F3, F3, I1, F2, F1, F1, I1,)),
     ),
+    "flowkit.integrate.rosenbrock._lines": (
+        ("flowkit.integrate.stiffness", "cell_jacobian", (F2, F1, F, F, F, F2,)),
+        ("flowkit.integrate.rosenbrock", "_rhs_jac", (F, F, F, I, F2, F1, F2, F1, F1,)),
+        ("flowkit.integrate.rosenbrock", "_inv3", (F2, F2,)),
+        ("flowkit.integrate.stiffness", "spectral_radius_bound", (F2,)),
+    ),
+    "flowkit.integrate.pathlines._lines": (
+        ("flowkit.integrate.pathlines", "_axis", (F1, F, F, F,)),
+        ("flowkit.fields.interp", "trilinear_vector", (F4, I, I, I, F, F, F,)),
+        ("flowkit.integrate.pathlines", "_velocity", (F, F, F, F, F1, F1, F1, F1, F1, F4, F4, F, F,
+         F2, I,)),
+    ),
 }

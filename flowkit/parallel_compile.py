@@ -15,11 +15,18 @@ as it links a helper compiled in its own process.
 Not started on one core (the CPU set this process may use: a one-CPU container counts one),
 where numba's cache is not written (no writable folder), where ``sys.executable`` is not a plain
 Python (an application that embeds one), with ``FLOWKIT_PARALLEL_COMPILE=0``, or when the disk
-cache already holds the kernel.  The helpers and their argument types are the table in
-``helper_sigs.py``, written by ``python -m flowkit.parallel_compile --write`` from a default
-trace on an empty cache and checked by tests/test_compile_cost.py.  A stale entry only wastes
-the other process's time (it compiles a signature nobody asks for); it never changes what this
-process runs.
+cache already holds the kernel.
+
+Once the kernel's helpers are done, the other process has nothing to do for the seconds this one
+spends on the kernel's own lowering and LLVM work.  While this process lives (the other one reads
+its standard input until this one closes it, at exit), it goes on with the helpers of the
+kernels users add next: the Rosenbrock and pathline integrators.  Their first trace then only
+compiles its own kernel.
+
+The helpers and their argument types are the table in ``helper_sigs.py``, written by ``python -m
+flowkit.parallel_compile --write`` from traces on an empty cache and checked by
+tests/test_compile_cost.py.  A stale entry only wastes the other process's time (it compiles a
+signature nobody asks for); it never changes what this process runs.
 """
 
 from __future__ import annotations
@@ -37,6 +44,10 @@ from .numba_cache import in_disk_cache
 
 LOG = logging.getLogger("flowkit.compile")
 _started: set[str] = set()
+_running: list[subprocess.Popen] = []  # (their stdin pipes stay open while this process lives)
+# the kernels whose helpers the other process compiles next, while this process lives
+NEXT = {"flowkit.integrate.kernel._advance_lines": ("flowkit.integrate.rosenbrock._lines",
+                                                   "flowkit.integrate.pathlines._lines")}
 
 
 def _cores() -> int:
@@ -79,25 +90,52 @@ def start(kernel: str, dispatcher) -> subprocess.Popen | None:
         p for p in (root, os.environ.get("PYTHONPATH", "")) if p))
     try:
         proc = subprocess.Popen([_python(), "-m", "flowkit.parallel_compile", kernel],
-                                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL, env=env)
     except OSError as e:  # the interpreter cannot be started: compile here alone
         LOG.debug("no second compile process: %s", e)
         return None
-    threading.Thread(target=proc.wait, daemon=True, name="flowkit-compile-reaper").start()
+    _running.append(proc)
+    threading.Thread(target=_reap, args=(proc,), daemon=True, name="flowkit-compile-reaper").start()
     return proc
 
 
-def compile_helpers(kernel: str) -> None:
+def _reap(proc: subprocess.Popen) -> None:
+    proc.wait()
+    _running.remove(proc)
+    proc.stdin.close()
+
+
+def compile_helpers(kernel: str, go_on=lambda: True) -> None:
     """Compile ``kernel``'s helpers, last asked for first (an entry that no longer matches its
-    function is skipped)."""
+    function is skipped), while ``go_on()``."""
     from .helper_sigs import HELPERS
 
-    for module, name, sig in reversed(HELPERS[kernel]):
+    for module, name, sig in reversed(HELPERS.get(kernel, ())):
+        if not go_on():
+            return
         try:
             getattr(importlib.import_module(module), name).compile(sig)
         except Exception as e:  # noqa: BLE001 (a stale entry: the kernel's process compiles it)
             LOG.debug("%s.%s%s: %s", module, name, sig, e)
+
+
+def _parent_alive() -> threading.Event:
+    """An event cleared when the process that started this one exits (its end of our
+    standard input closes)."""
+    alive = threading.Event()
+    alive.set()
+
+    def watch():  # (os.read: a thread blocked in sys.stdin's reader aborts the exit)
+        try:
+            while os.read(0, 4096):
+                pass
+        except OSError:
+            pass
+        alive.clear()
+
+    threading.Thread(target=watch, daemon=True).start()
+    return alive
 
 
 # -- writing the table ------------------------------------------------------------------------
@@ -140,16 +178,21 @@ def compile_order(run, kernel: str) -> list[tuple[str, str, tuple]]:
 
 
 def write_table(path: Path | None = None) -> Path:
-    """Write helper_sigs.py from a default trace (run on an empty cache: a helper loaded from
-    the cache is not seen compiling)."""
+    """Write helper_sigs.py from a default trace and the traces of ``NEXT`` (run on an empty
+    cache: a helper loaded from the cache is not seen compiling)."""
     import flowkit
     from flowkit import warmup
+    from flowkit.integrate.pathlines import pathlines
 
     field = warmup.stand_in()
-    # (the Rosenbrock and pathline kernels are nearly all their own code: a second process
-    # gained nothing measurable there)
+    # in this order, each after the one before (a helper already compiled is not listed again)
     kernels = {"flowkit.integrate.kernel._advance_lines":
-               lambda: flowkit.trace(field, warmup.SEEDS, max_length=4.0)}
+               lambda: flowkit.trace(field, warmup.SEEDS, max_length=4.0),
+               "flowkit.integrate.rosenbrock._lines":
+               lambda: flowkit.trace(field, warmup.SEEDS, max_length=4.0, method="ros34pw2"),
+               "flowkit.integrate.pathlines._lines":
+               lambda: pathlines([(0.0, field), (1.0, warmup.stand_in(t=1.0))], warmup.SEEDS,
+                                 max_time=1.0)}
     lines = ['"""The helpers each kernel\'s compilation asks for, with their argument types, in the',
              "order its typing asks for them (written by `python -m flowkit.parallel_compile",
              "--write` on an empty cache; tests/test_compile_cost.py checks it against a default",
@@ -181,7 +224,10 @@ def main(argv=None) -> int:
     (kernel,) = argv
     import flowkit  # noqa: F401 (the cache location, as in the process that started this one)
 
+    alive = _parent_alive()
     compile_helpers(kernel)
+    for nxt in NEXT.get(kernel, ()):
+        compile_helpers(nxt, alive.is_set)
     return 0
 
 

@@ -202,3 +202,34 @@ def test_second_compile_process_only_where_it_helps(monkeypatch):
     for exe in ("/opt/blender/blender", "/usr/bin/uwsgi", ""):  # Python embedded in a program
         monkeypatch.setattr(sys, "executable", exe)
         assert not parallel_compile.enabled()
+
+
+def test_second_process_compiles_the_next_kernels_helpers_only_while_its_parent_lives(tmp_path):
+    """After the tracing kernel's helpers, the second process compiles the Rosenbrock and pathline
+    kernels' helpers (helper_sigs.py), but only while the process that started it lives: its
+    standard input is that process's pipe, closed at exit.  Two second processes side by side on
+    empty caches: one whose parent keeps the pipe open until it ends, one started on a closed
+    input (a parent that has exited)."""
+    from flowkit import parallel_compile
+    from flowkit.helper_sigs import HELPERS
+
+    kernel = "flowkit.integrate.kernel._advance_lines"
+    procs = {}
+    for alive in (True, False):
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / str(alive)))
+        procs[alive] = subprocess.Popen(
+            [sys.executable, "-m", "flowkit.parallel_compile", kernel], env=env,
+            stdin=subprocess.PIPE if alive else subprocess.DEVNULL)
+    for proc in procs.values():
+        assert proc.wait(timeout=600) == 0
+    procs[True].stdin.close()
+
+    def cached(alive, table):  # the helpers of a table that the process left in its cache
+        return {n for m, n, sig in HELPERS[table]
+                if any((tmp_path / str(alive)).rglob(f"*.{n}-*.nbi"))}
+
+    for nxt in parallel_compile.NEXT[kernel]:
+        names = {n for m, n, sig in HELPERS[nxt]}
+        assert names and cached(True, nxt) == names
+        assert not cached(False, nxt)
+    assert cached(False, kernel) == {n for m, n, sig in HELPERS[kernel]}
