@@ -62,7 +62,10 @@ HELPERS = {
         ("flowkit.integrate.stiffness", "cell_jacobian", (F2, F1, F, F, F, F2,)),
         ("flowkit.integrate.rosenbrock", "_rhs_jac", (F, F, F, I, F2, F1, F2, F1, F1,)),
         ("flowkit.integrate.rosenbrock", "_inv3", (F2, F2,)),
+        ("flowkit.integrate.rosenbrock", "_step", (F1, F, I, F1, F2, F2, F2, F1, F1, F1, F2, F2,
+         F2, F1, F1, F2, F2, F1, F1, F1,)),
         ("flowkit.integrate.stiffness", "spectral_radius_bound", (F2,)),
+        ("flowkit.integrate.rosenbrock", "_event", (F1, F1, F2, F, I, F1, F, F, F2, I,)),
     ),
     "flowkit.integrate.pathlines._lines": (
         ("flowkit.integrate.pathlines", "_axis", (F1, F, F, F,)),

@@ -180,6 +180,8 @@ def compile_order(run, kernel: str) -> list[tuple[str, str, tuple]]:
 def write_table(path: Path | None = None) -> Path:
     """Write helper_sigs.py from a default trace and the traces of ``NEXT`` (run on an empty
     cache: a helper loaded from the cache is not seen compiling)."""
+    # this process compiles every helper itself: one a second process stored would be loaded
+    os.environ["FLOWKIT_PARALLEL_COMPILE"] = "0"
     import flowkit
     from flowkit import warmup
     from flowkit.integrate.pathlines import pathlines

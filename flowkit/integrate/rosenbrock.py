@@ -101,6 +101,108 @@ def _inv3(M, Mi):
     return True
 
 
+# The step and its events are functions of their own, inlined by LLVM (jit.inline): numba types
+# and lowers them apart from the line loop, and the second compile process (parallel_compile)
+# compiles them during a default trace, so a first Rosenbrock trace compiles a loop of half the
+# size.
+@inline
+def _step(y, hs, param, cf, coef, alpha, gam, b, bhat, fo, k, kk, J, g, u, W, Wi, yt, rhs, y1):
+    """One step of the coefficients' method from y over hs, in the cell (cf, coef): the stage
+    increments into kk, y1, f(y1) into k[ns] and the Jacobian at y into J; the error norm, and
+    whether everything came out finite."""
+    ns = b.size
+    gamma = gam[0, 0]
+    _rhs_jac(y[0], y[1], y[2], param, coef, cf, J, g, u)
+    for i in range(3):
+        for j in range(3):
+            W[i, j] = (1.0 if i == j else 0.0) - hs * gamma * J[i, j]
+    finite = _inv3(W, Wi)
+    for st in range(ns):
+        if not finite:
+            break
+        if st > 0:
+            for a in range(3):
+                acc = 0.0
+                for m in range(st):
+                    acc += alpha[st, m] * kk[m, a]
+                yt[a] = y[a] + acc
+            _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
+        for a in range(4):  # h f(Y_i) + h J Σ γ_ij k_j (J extended by g as its 4th row)
+            acc = 0.0
+            for m in range(st):
+                if a < 3:
+                    acc += gam[st, m] * (J[a, 0] * kk[m, 0] + J[a, 1] * kk[m, 1] + J[a, 2] * kk[m, 2])
+                else:
+                    acc += gam[st, m] * (g[0] * kk[m, 0] + g[1] * kk[m, 1] + g[2] * kk[m, 2])
+            rhs[a] = hs * (k[st, a] + acc)
+        for a in range(3):
+            kk[st, a] = Wi[a, 0] * rhs[0] + Wi[a, 1] * rhs[1] + Wi[a, 2] * rhs[2]
+        kk[st, 3] = rhs[3] + hs * gamma * (g[0] * kk[st, 0] + g[1] * kk[st, 1] + g[2] * kk[st, 2])
+        for a in range(4):
+            if not math.isfinite(kk[st, a]):
+                finite = False
+    err = 0.0
+    if finite:
+        for a in range(4):
+            acc = 0.0
+            ea = 0.0
+            for m in range(ns):
+                acc += b[m] * kk[m, a]
+                ea += (b[m] - bhat[m]) * kk[m, a]
+            y1[a] = y[a] + acc
+            if a < 3:
+                sc = fo[K.O_ATOL + a] + fo[K.O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
+                err += (ea / sc) ** 2
+        err = math.sqrt(err / 3.0)
+        finite = math.isfinite(err)
+    if finite:  # f(y1): the next step's f0 and the Hermite end slope
+        _fc(y1[0], y1[1], y1[2], param, cf, coef, k, np.int64(ns))
+        finite = math.isfinite(k[ns, 0] + k[ns, 1] + k[ns, 2] + k[ns, 3])
+    return err, finite
+
+
+@inline
+def _event(y, y1, k, hs, ns, cf, lim_dep, d, qd, q):
+    """The first event of an accepted step from y to y1 on its Hermite dense output (into qd):
+    leaving the cell, the dependent limit.  (EV_NONE, 1.0, -1, 0.0), or the event, its θ, and
+    for a face its axis and coordinate."""
+    need_face = False
+    for a in range(3):
+        if y1[a] < cf[a] or y1[a] > cf[3 + a]:
+            need_face = True
+    need_dep = abs(y1[3]) >= lim_dep
+    ev = K.EV_NONE
+    th = 1.0
+    ev_axis = -1
+    ev_face = 0.0
+    if need_face or need_dep:
+        for a in range(4):
+            dl = (y1[a] - y[a]) / hs
+            qd[a, 0] = k[0, a]
+            qd[a, 1] = 3.0 * dl - 2.0 * k[0, a] - k[ns, a]
+            qd[a, 2] = -2.0 * dl + k[0, a] + k[ns, a]
+    # (one inlined root finder for the three faces and the dependent limit: each copy
+    # costs compile time)
+    for a in range(4):
+        if a < 3:
+            up = y1[a] > cf[3 + a]
+            if not (up or y1[a] < cf[a]):
+                continue
+            target, sgn = (cf[3 + a], 1.0) if up else (cf[a], -1.0)
+        elif need_dep:
+            target, sgn = d * lim_dep, d
+        else:
+            continue
+        tha = _root(qd, a, q, y[a], hs, target, sgn, 1.0)
+        if ev == K.EV_NONE or tha < th:
+            th = tha
+            ev = K.EV_FACE if a < 3 else K.EV_DEPLIM
+            if a < 3:
+                ev_axis = a
+                ev_face = target
+    return ev, th, ev_axis, ev_face
+
+
 # without NRT (no reference counting of the arrays handed to the helpers; nothing allocated
 # here: the scratch arrays come from _range)
 @njit(cache=True, nogil=True, _nrt=False)
@@ -119,13 +221,11 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
     safety, facmin, facmax = fo[K.O_SAFETY], fo[K.O_FACMIN], fo[K.O_FACMAX]
     hmin, hmax, cellfac, stag = fo[K.O_HMIN], fo[K.O_HMAX], fo[K.O_CELLFAC], fo[K.O_STAG]
     q = np.int64(_Q)  # the helpers' arguments typed (jit.helper): a literal compiles a copy
-    C0, C1, C2, C3 = np.int64(0), np.int64(1), np.int64(2), np.int64(3)
     lim_ind = fo[K.O_MAXTIME] if param == 0 else fo[K.O_MAXLEN]
     lim_dep = fo[K.O_MAXLEN] if param == 0 else fo[K.O_MAXTIME]
     r_ind = K.R_MAXTIME if param == 0 else K.R_MAXLEN
     r_dep = K.R_MAXLEN if param == 0 else K.R_MAXTIME
     ns = b.size
-    gamma = gam[0, 0]
     for l in range(start, stop):
         d = dirs[l]
         out_n[l] = 0
@@ -189,53 +289,8 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
                 hs = d * rem
                 hit_lim = True
 
-            # one ROS34PW2 step
-            _rhs_jac(y[0], y[1], y[2], param, coef, cf, J, g, u)
-            for i in range(3):
-                for j in range(3):
-                    W[i, j] = (1.0 if i == j else 0.0) - hs * gamma * J[i, j]
-            finite = _inv3(W, Wi)
-            for st in range(ns):
-                if not finite:
-                    break
-                if st > 0:
-                    for a in range(3):
-                        acc = 0.0
-                        for m in range(st):
-                            acc += alpha[st, m] * kk[m, a]
-                        yt[a] = y[a] + acc
-                    _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
-                for a in range(4):  # h f(Y_i) + h J Σ γ_ij k_j (J extended by g as its 4th row)
-                    acc = 0.0
-                    for m in range(st):
-                        if a < 3:
-                            acc += gam[st, m] * (J[a, 0] * kk[m, 0] + J[a, 1] * kk[m, 1] + J[a, 2] * kk[m, 2])
-                        else:
-                            acc += gam[st, m] * (g[0] * kk[m, 0] + g[1] * kk[m, 1] + g[2] * kk[m, 2])
-                    rhs[a] = hs * (k[st, a] + acc)
-                for a in range(3):
-                    kk[st, a] = Wi[a, 0] * rhs[0] + Wi[a, 1] * rhs[1] + Wi[a, 2] * rhs[2]
-                kk[st, 3] = rhs[3] + hs * gamma * (g[0] * kk[st, 0] + g[1] * kk[st, 1] + g[2] * kk[st, 2])
-                for a in range(4):
-                    if not math.isfinite(kk[st, a]):
-                        finite = False
-            err = 0.0
-            if finite:
-                for a in range(4):
-                    acc = 0.0
-                    ea = 0.0
-                    for m in range(ns):
-                        acc += b[m] * kk[m, a]
-                        ea += (b[m] - bhat[m]) * kk[m, a]
-                    y1[a] = y[a] + acc
-                    if a < 3:
-                        sc = fo[K.O_ATOL + a] + fo[K.O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
-                        err += (ea / sc) ** 2
-                err = math.sqrt(err / 3.0)
-                finite = math.isfinite(err)
-            if finite:  # f(y1): the next step's f0 and the Hermite end slope
-                _fc(y1[0], y1[1], y1[2], param, cf, coef, k, np.int64(ns))
-                finite = math.isfinite(k[ns, 0] + k[ns, 1] + k[ns, 2] + k[ns, 3])
+            err, finite = _step(y, hs, param, cf, coef, alpha, gam, b, bhat, fo, k, kk, J, g, u, W, Wi,
+                                yt, rhs, y1)
             if not finite or err > 1.0:  # NaN data met (a stage, or f(y1)), or an error too large
                 n_rej += 1
                 last_rej = True
@@ -255,42 +310,7 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
             if hlam > HLAMBDA_STIFF:
                 n_stiff += 1
 
-            # events on the Hermite dense output: leaving the cell, the dependent limit
-            need_face = False
-            for a in range(3):
-                if y1[a] < cf[a] or y1[a] > cf[3 + a]:
-                    need_face = True
-            need_dep = abs(y1[3]) >= lim_dep
-            ev = K.EV_NONE
-            th = 1.0
-            ev_axis = -1
-            ev_face = 0.0
-            if need_face or need_dep:
-                for a in range(4):
-                    dl = (y1[a] - y[a]) / hs
-                    qd[a, 0] = k[0, a]
-                    qd[a, 1] = 3.0 * dl - 2.0 * k[0, a] - k[ns, a]
-                    qd[a, 2] = -2.0 * dl + k[0, a] + k[ns, a]
-            if need_face:
-                for a in range(3):
-                    if y1[a] < cf[a]:
-                        tha = _root(qd, a, q, y[a], hs, cf[a], -1.0, 1.0)
-                        face = cf[a]
-                    elif y1[a] > cf[3 + a]:
-                        tha = _root(qd, a, q, y[a], hs, cf[3 + a], 1.0, 1.0)
-                        face = cf[3 + a]
-                    else:
-                        continue
-                    if ev == K.EV_NONE or tha < th:
-                        th = tha
-                        ev_axis = a
-                        ev_face = face
-                        ev = K.EV_FACE
-            if need_dep:
-                thd = _root(qd, C3, q, y[3], hs, d * lim_dep, d, 1.0)
-                if ev == K.EV_NONE or thd < th:
-                    th = thd
-                    ev = K.EV_DEPLIM
+            ev, th, ev_axis, ev_face = _event(y, y1, k, hs, ns, cf, lim_dep, d, qd, q)
             n_acc += 1
             if ev == K.EV_NONE:
                 for a in range(4):
@@ -298,11 +318,10 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
                     k[0, a] = k[ns, a]
                 tau = d * lim_ind if hit_lim else tau + hs
             else:
-                y0x, y0y, y0z, y0d = y[0], y[1], y[2], y[3]
-                y[0] = _dense(qd, C0, q, y0x, hs, th)
-                y[1] = _dense(qd, C1, q, y0y, hs, th)
-                y[2] = _dense(qd, C2, q, y0z, hs, th)
-                y[3] = d * lim_dep if ev == K.EV_DEPLIM else _dense(qd, C3, q, y0d, hs, th)
+                for a in range(4):
+                    y[a] = _dense(qd, a, q, y[a], hs, th)
+                if ev == K.EV_DEPLIM:
+                    y[3] = d * lim_dep
                 tau = tau + th * hs
                 hit_lim = False
                 if ev == K.EV_FACE:
