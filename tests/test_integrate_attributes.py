@@ -239,6 +239,11 @@ def test_node_curl_is_np_gradients_bit_for_bit_and_sampled_at_points_as_the_grid
     lo, hi = f.grid.origin, np.array([c[-1] for c in f.grid.axes])
     pts = lo + (hi - lo) * np.random.default_rng(3).uniform(-0.05, 1.05, (4000, 3))
     pts[:8] = np.array(np.meshgrid(*[c[:2] for c in f.grid.axes])).reshape(3, -1).T
+    # and runs of points in one cell after another, as a line's vertices come (a point in the
+    # cell of the point before it reuses that cell's corners), across the NaN hole
+    hole = np.array([f.grid.axes[0][1], f.grid.axes[1][1], f.grid.axes[2][2]])
+    run = hole + (hi - lo) * np.linspace(-0.5, 0.5, 1000)[:, None] * np.array([1.0, 0.6, 0.3])
+    pts = np.concatenate([pts, run, run[::-1]])
     for field in (f, holed):
         want, status = np.empty((len(pts), 3)), np.empty(len(pts), np.int8)
         interp.sample_vectors(*field.grid.kernel_args(), curl.curl(field), pts, want, status)
