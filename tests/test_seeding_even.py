@@ -3,6 +3,8 @@ periodic ABC flow; too_close recorded per direction; deterministic; CLI and scen
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -139,6 +141,27 @@ def test_options_refused(room):
         evenly_spaced(room, 1.0, count=20)
     with pytest.raises(KeyError, match="unknown attribute 'nope'"):
         evenly_spaced(room, 1.0, attributes=("nope",))
+
+
+def test_a_dsep_as_wide_as_the_domain_is_said(room):
+    """A fraction of the diagonal can exceed a thin domain's width: said, naming the axis."""
+    thin = ABCFlow().to_field(shape=(5, 5, 60), bounds=[[0, 0.4], [0, 0.4], [0, 12]])
+    with pytest.warns(UserWarning, match=r"dsep = 0\.6 is not smaller than the domain along x "
+                                         r"\(0\.4\).*diagonal 12\.01"):
+        evenly_spaced(thin, 0.6, max_length=1.0, max_lines=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        evenly_spaced(thin, 0.2, max_length=1.0, max_lines=3)
+
+
+def test_cli_says_it_in_one_line(tmp_path, capsys):
+    from flowkit.cli import main
+
+    rc = main(["trace", "datasets/hotroom.h5", "-o", str(tmp_path / "wide.h5"), "--seeds",
+               "even:1/2d", "--max-length", "2", "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 0
+    assert "flowkit: warning: " in err and "along y (5)" in err and "UserWarning" not in err
 
 
 def test_stiff_methods_place_vertices_at_their_steps(room):

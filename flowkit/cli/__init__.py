@@ -8,6 +8,7 @@ import argparse
 import importlib
 import pkgutil
 import sys
+import warnings
 
 
 class CLIError(Exception):
@@ -37,11 +38,19 @@ def _show_compile_notices() -> None:
         log.propagate = False
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """A warning as one line on stderr, "flowkit: warning: ...", not Python's file, line number
+    and source line."""
+    print(f"flowkit: warning: {message}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     _show_compile_notices()
     try:
-        return int(args.func(args) or 0)
+        with warnings.catch_warnings():  # (restores Python's own display after the command)
+            warnings.showwarning = _show_warning
+            return int(args.func(args) or 0)
     except (CLIError, FileNotFoundError, ValueError, KeyError, OSError) as e:
         msg = e.args[0] if isinstance(e, KeyError) and e.args else e
         print(f"flowkit {args.command}: error: {msg}", file=sys.stderr)

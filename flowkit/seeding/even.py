@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 
 import numpy as np
 from numba import njit
@@ -296,6 +297,21 @@ def _tasks(tr: Lines, lines, shift, first, both):
     return np.stack([lines, a + 1, b, one, a], 1), tr.line_data["reason"]
 
 
+def _warn_narrow(field: Field, dsep: float) -> None:
+    """Warn where dsep is not smaller than the domain along an axis: lines about dsep apart
+    then leave that axis one line wide (a fraction of the diagonal, ``1/30d``, does that on a
+    tall thin domain)."""
+    extent = np.diff(np.asarray(field.grid.bounds, float), axis=1)[:, 0]
+    a = int(np.argmin(extent))
+    if dsep >= extent[a]:
+        diag = float(np.linalg.norm(extent))
+        warnings.warn(f"{field.source}: evenly spaced seeding: dsep = {dsep:g} is not smaller "
+                      f"than the domain along {'xyz'[a]} ({extent[a]:g}): lines about dsep "
+                      f"apart leave it one line wide; a smaller dsep fills it (lengths in world "
+                      f"units, or a fraction of the diagonal {diag:g} with the d suffix)",
+                      stacklevel=3)
+
+
 class EvenSeeder:
     """Grows evenly spaced lines through ``field``; ``run()`` returns them as Lines.
     ``chunk``: the arc length of a generation's first round (default 4 dsep; later rounds
@@ -328,6 +344,7 @@ class EvenSeeder:
         self.seed, self.backend, self.max_lines = int(seed), backend, max_lines
         g = field.grid
         self.bounds, self.period = g.bounds, np.array(g.period, np.float64)
+        _warn_narrow(field, self.dsep)
         _attributes.check(field, opts.attributes)
         self.chunk = self._chunk(chunk or CHUNK * self.dsep)
         self.stag = stagnation_speed(field, opts)
