@@ -39,6 +39,7 @@ from ..integrate import attributes as _attributes
 from ..integrate.options import OptionsError, TraceOptions
 from ..integrate.reasons import Reason
 from ..integrate.trace import line_attrs, resolve_options, stagnation_speed, trace
+from ..jit import inline
 from ..lines import Lines
 
 DIRECTIONS = 6  # candidate seeds around the tangent of a line
@@ -54,7 +55,7 @@ MAX_LENGTH = int(Reason.MAX_LENGTH)
 
 # -- the spatial hash ---------------------------------------------------------------------------
 # ``geo`` rows: the low corner, cells per unit length, cells, period (0: not periodic), per axis.
-@njit(cache=True)
+@inline
 def _axis_cell(x, geo, a):
     d = x - geo[0, a]
     if geo[3, a] > 0.0:
@@ -62,7 +63,7 @@ def _axis_cell(x, geo, a):
     return min(max(math.floor(d * geo[1, a]), 0), int(geo[2, a]) - 1)
 
 
-@njit(cache=True)
+@inline
 def _cell(p, geo):
     return ((_axis_cell(p[0], geo, 0) * int(geo[2, 1]) + _axis_cell(p[1], geo, 1))
             * int(geo[2, 2]) + _axis_cell(p[2], geo, 2))
@@ -76,7 +77,7 @@ def _insert(geo, head, nxt, pts, n0, n1):
         head[c] = v
 
 
-@njit(cache=True)
+@inline
 def _span(x, r, geo, a):
     """The first cell and the number of cells along axis a that [x - r, x + r] reaches (a
     periodic axis wraps: callers take the index modulo the cell count)."""
@@ -90,7 +91,7 @@ def _span(x, r, geo, a):
     return c0, min(math.floor((d + r) * geo[1, a]), n - 1) - c0 + 1
 
 
-@njit(cache=True)
+@inline
 def _diff(p, q, geo, a):
     """p - q along axis a, the minimum image on a periodic axis."""
     d = p[a] - q[a]
@@ -99,7 +100,7 @@ def _diff(p, q, geo, a):
     return d
 
 
-@njit(cache=True)
+@inline
 def _entry(a, p, q, r2, geo):
     """The first u in [0, 1] where a + u (p - a) is within sqrt(r2) of q (-1: never)."""
     e0, e1, e2 = _diff(a, q, geo, 0), _diff(a, q, geo, 1), _diff(a, q, geo, 2)
@@ -116,7 +117,7 @@ def _entry(a, p, q, r2, geo):
     return u if 0.0 <= u <= 1.0 else -1.0
 
 
-@njit(cache=True)
+@inline
 def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
     """Over the hashed vertices that count (owner >= 0, and for the own ``line`` only those
     more than ``gap`` of arc length from ``s``): without ``entry``, 1 if one lies within ``r``
