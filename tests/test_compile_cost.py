@@ -233,3 +233,17 @@ def test_second_process_compiles_the_next_kernels_helpers_only_while_its_parent_
         assert names and cached(True, nxt) == names
         assert not cached(False, nxt)
     assert cached(False, kernel) == {n for m, n, sig in HELPERS[kernel]}
+
+
+def test_the_compile_notices_name_kernels_that_exist():
+    """Each kernel the notices describe by name is a numba function where the table says (a
+    renamed kernel would fall back to "a flowkit kernel" without its typical seconds)."""
+    import importlib
+
+    from numba.core.registry import CPUDispatcher
+
+    from flowkit.compile_notice import TYPICAL
+
+    for qualified in TYPICAL:
+        module, name = qualified.rsplit(".", 1)
+        assert isinstance(getattr(importlib.import_module(module), name), CPUDispatcher), qualified
