@@ -24,7 +24,7 @@ TYPICAL = {
     "flowkit.integrate.pathlines._lines": ("the pathline kernel", 4),
     "flowkit.integrate.rosenbrock._lines": ("the Rosenbrock kernel", 4),
     "flowkit.fields.interp._sample_range": ("the attribute sampler", 1),
-    "flowkit.seeding.even._pick": ("the evenly spaced seeding's candidate pick", 5),
+    "flowkit.seeding.even._pick": ("the evenly spaced seeding's candidate pick", 3),
     "flowkit.seeding.even._walk": ("the evenly spaced seeding's walk", 2),
 }
 

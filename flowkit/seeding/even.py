@@ -180,7 +180,8 @@ def _pick(geo, head, nxt, pts, owner, sarr, cand, at, limit, r, picked, phead, p
             continue
         if _scan(geo, phead, pnxt, picked, pown, ps, p, p, r, -1, 0.0, 0.0, False) > 0.0:
             continue
-        picked[n] = p
+        # (row by row: numba's array setitem compiles a shape-mismatch message, seconds)
+        picked[n, 0], picked[n, 1], picked[n, 2] = p[0], p[1], p[2]
         c = _cell(p, geo)
         pnxt[n] = phead[c]
         phead[c] = n
@@ -222,7 +223,7 @@ def _walk(geo, head, nxt, pts, owner, sarr, tarr, cnt, tp, ts, tt, task, base, r
                 sv, tv = sa + u * (sv - sa), ta + u * (tv - ta)
                 p = a + u * (p - a)
                 stop = j  # keep the tip, then stop
-            pts[n] = p
+            pts[n, 0], pts[n, 1], pts[n, 2] = p[0], p[1], p[2]  # (as in _pick)
             owner[n], sarr[n], tarr[n] = line, sv, tv
             _insert(geo, head, nxt, pts, n, n + 1)
             out[k, 0] = n
