@@ -44,7 +44,6 @@ from .numba_cache import in_disk_cache
 
 LOG = logging.getLogger("flowkit.compile")
 _started: set[str] = set()
-_running: list[subprocess.Popen] = []  # (their stdin pipes stay open while this process lives)
 # the kernels whose helpers the other process compiles next, while this process lives
 NEXT = {"flowkit.integrate.kernel._advance_lines": ("flowkit.integrate.rosenbrock._lines",
                                                    "flowkit.integrate.pathlines._lines")}
@@ -95,14 +94,13 @@ def start(kernel: str, dispatcher) -> subprocess.Popen | None:
     except OSError as e:  # the interpreter cannot be started: compile here alone
         LOG.debug("no second compile process: %s", e)
         return None
-    _running.append(proc)
+    # the reaper holds the process, and so the pipe to it, open until it ends (or this one does)
     threading.Thread(target=_reap, args=(proc,), daemon=True, name="flowkit-compile-reaper").start()
     return proc
 
 
 def _reap(proc: subprocess.Popen) -> None:
     proc.wait()
-    _running.remove(proc)
     proc.stdin.close()
 
 
@@ -111,7 +109,7 @@ def compile_helpers(kernel: str, go_on=lambda: True) -> None:
     function is skipped), while ``go_on()``."""
     from .helper_sigs import HELPERS
 
-    for module, name, sig in reversed(HELPERS.get(kernel, ())):
+    for module, name, sig in reversed(HELPERS[kernel]):
         if not go_on():
             return
         try:

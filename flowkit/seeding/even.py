@@ -299,11 +299,11 @@ def _tasks(tr: Lines, lines, shift, first, both):
     return np.stack([lines, a + 1, b, one, a], 1), tr.line_data["reason"]
 
 
-def _warn_narrow(field: Field, dsep: float) -> None:
-    """Warn where dsep is not smaller than the domain along an axis: lines about dsep apart
-    then leave that axis one line wide (a fraction of the diagonal, ``1/30d``, does that on a
-    tall thin domain)."""
-    extent = np.diff(np.asarray(field.grid.bounds, float), axis=1)[:, 0]
+def _warn_narrow(field: Field, bounds, dsep: float) -> None:
+    """Warn where dsep is not smaller than the domain (``bounds``, (3, 2)) along an axis: lines
+    about dsep apart then leave that axis one line wide (a fraction of the diagonal, ``1/30d``,
+    does that on a tall thin domain)."""
+    extent = bounds[:, 1] - bounds[:, 0]
     a = int(np.argmin(extent))
     if dsep >= extent[a]:
         diag = float(np.linalg.norm(extent))
@@ -346,7 +346,7 @@ class EvenSeeder:
         self.seed, self.backend, self.max_lines = int(seed), backend, max_lines
         g = field.grid
         self.bounds, self.period = g.bounds, np.array(g.period, np.float64)
-        _warn_narrow(field, self.dsep)
+        _warn_narrow(field, self.bounds, self.dsep)
         _attributes.check(field, opts.attributes)
         self.chunk = self._chunk(chunk or CHUNK * self.dsep)
         self.stag = stagnation_speed(field, opts)
