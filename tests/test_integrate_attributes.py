@@ -251,6 +251,27 @@ def test_node_curl_is_np_gradients_bit_for_bit_and_sampled_at_points_as_the_grid
     assert np.isnan(want).any() and np.isfinite(want).any()
 
 
+def test_vorticity_at_few_points_allocates_for_the_points_not_for_the_grid():
+    """The node curl is kept at the marked corners only: a vertex's vorticity on a large grid
+    costs memory like its points (plus two bytes per node of marks and counts), not a
+    grid-sized array of curls (24 bytes per node) as it once did."""
+    import tracemalloc
+
+    f = ABCFlow().to_field(shape=(97, 97, 97))  # 22 MB of vectors
+    pts = np.random.default_rng(5).uniform(0.5, 5.5, (200, 3))
+    attributes.vorticity_at(f, pts)  # compiled outside the measurement
+    tracemalloc.start()
+    try:
+        w = attributes.vorticity_at(f, pts)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 2.5 * f.grid.shape[0] ** 3 + 1e5, peak  # marks, counts and the rows
+    want, status = np.empty((len(pts), 3)), np.empty(len(pts), np.int8)
+    interp.sample_vectors(*f.grid.kernel_args(), curl.curl(f), pts, want, status)
+    assert np.array_equal(w, want)
+
+
 @pytest.mark.parametrize("grid", [None, RECTILINEAR], ids=["uniform", "rectilinear"])
 def test_vector_and_scalar_sampled_together_are_the_separate_samples_bit_for_bit(grid):
     """Speed and a scalar (the viewer's heated room: speed, T) are sampled in one pass that

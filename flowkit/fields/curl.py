@@ -207,18 +207,18 @@ def _derivative(vec, comp, axis, i, j, k, mode, nodes, w, fbn, fbw, off):
 @njit(cache=True, nogil=True)
 def _curl_range(start, stop, ids, vec, mode, nodes, w, fbn, fbw, off, out):
     """The curl at nodes ids[start:stop] (flat node indices; ids empty: the nodes start..stop
-    themselves) into out (nx, ny, nz, 3)."""
+    themselves) into the rows start..stop of out (n, 3)."""
     ny, nz = vec.shape[1], vec.shape[2]
     x, y, z = np.int64(0), np.int64(1), np.int64(2)  # typed: a literal compiles a copy per value
     for n in range(start, stop):
         q = ids[n] if ids.size else n
         i, j, k = q // (ny * nz), (q // nz) % ny, q % nz
-        out[i, j, k, 0] = (_derivative(vec, z, y, i, j, k, mode, nodes, w, fbn, fbw, off)
-                           - _derivative(vec, y, z, i, j, k, mode, nodes, w, fbn, fbw, off))
-        out[i, j, k, 1] = (_derivative(vec, x, z, i, j, k, mode, nodes, w, fbn, fbw, off)
-                           - _derivative(vec, z, x, i, j, k, mode, nodes, w, fbn, fbw, off))
-        out[i, j, k, 2] = (_derivative(vec, y, x, i, j, k, mode, nodes, w, fbn, fbw, off)
-                           - _derivative(vec, x, y, i, j, k, mode, nodes, w, fbn, fbw, off))
+        out[n, 0] = (_derivative(vec, z, y, i, j, k, mode, nodes, w, fbn, fbw, off)
+                     - _derivative(vec, y, z, i, j, k, mode, nodes, w, fbn, fbw, off))
+        out[n, 1] = (_derivative(vec, x, z, i, j, k, mode, nodes, w, fbn, fbw, off)
+                     - _derivative(vec, z, x, i, j, k, mode, nodes, w, fbn, fbw, off))
+        out[n, 2] = (_derivative(vec, y, x, i, j, k, mode, nodes, w, fbn, fbw, off)
+                     - _derivative(vec, x, y, i, j, k, mode, nodes, w, fbn, fbw, off))
 
 
 @njit(cache=True, nogil=True)
@@ -230,47 +230,91 @@ def _mark_range(start, stop, gx, gy, gz, period, inv, pts, mark):
         i, j, k, _, _, _, ok = interp.locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1],
                                              pts[n, 2])
         if ok:
-            i1, j1, k1 = (i + 1) % nx, (j + 1) % ny, (k + 1) % nz
+            i1, j1, k1 = interp.upper(i, nx), interp.upper(j, ny), interp.upper(k, nz)
             for c in range(8):
                 mark[i1 if c & 1 else i, j1 if c & 2 else j, k1 if c & 4 else k] = 1
 
 
 @njit(cache=True, nogil=True)
-def _marked(mark, ids):
-    """The flat indices of the nonzero marks into ids, in order; returns their count (a third
-    of np.flatnonzero's time on a grid's worth of bytes)."""
-    m = mark.ravel()
+def _rank(words, ids, base):
+    """The marked nodes' flat indices into ids, in order, and base[b] = how many are marked
+    before node 8b (``words``: the marks, 8 bytes of 0 or 1 to a word); returns their count.
+    Node q's row among them is then ``_row``: a word of unmarked nodes costs one test."""
     count = 0
-    for q in range(m.size):
-        if m[q]:
-            ids[count] = q
-            count += 1
+    for b in range(words.size):
+        base[b] = count
+        wd = words[b]
+        if wd:
+            for byte in range(8):
+                if (wd >> np.uint64(8 * byte)) & np.uint64(1):
+                    ids[count] = 8 * b + byte
+                    count += 1
     return count
+
+
+@inline
+def _row(words, base, q):
+    """The row of marked node q in ``_rank``'s order: the marks before it in its word, summed
+    by one multiply (bytes of 0 or 1 add up to at most 8, so no byte carries)."""
+    b = q >> 3
+    below = words[b] & ((np.uint64(1) << np.uint64(8 * (q & 7))) - np.uint64(1))
+    return base[b] + np.int64((below * np.uint64(0x0101010101010101)) >> np.uint64(56))
+
+
+@njit(cache=True, nogil=True)
+def _sample_rows(start, stop, gx, gy, gz, period, inv, shape, words, base, rows, pts, out):
+    """``interp.sample_vectors`` of a node field held only at the marked nodes, as ``rows``
+    (``_rank``'s order): the same sums, so the same values, NaN outside or where a corner that
+    counts is NaN."""
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    for n in range(start, stop):
+        i, j, k, tx, ty, tz, ok = interp.locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1],
+                                                pts[n, 2])
+        o0 = o1 = o2 = np.nan
+        if ok:
+            i1, j1, k1 = interp.upper(i, nx), interp.upper(j, ny), interp.upper(k, nz)
+            o0 = o1 = o2 = 0.0
+            for c in range(8):
+                ii, jj, kk, w = interp.corner(c, i, j, k, i1, j1, k1, tx, ty, tz)
+                if w != 0.0:
+                    r = _row(words, base, (ii * ny + jj) * nz + kk)
+                    o0 += w * rows[r, 0]
+                    o1 += w * rows[r, 1]
+                    o2 += w * rows[r, 2]
+            o0, o1, o2, _ = interp.finite_or_nan(o0, o1, o2)
+        out[n, 0], out[n, 1], out[n, 2] = o0, o1, o2
 
 
 def curl(field) -> np.ndarray:
     """Curl of the node vector field at every node, (nx, ny, nz, 3)."""
     vec = np.ascontiguousarray(field.vector, dtype=np.float64)
-    out = np.empty(vec.shape)
-    run_ranges(_curl_range, int(np.prod(vec.shape[:3])), np.empty(0, np.int64), vec,
-               *_tables(field.grid), out)
-    return out
+    out = np.empty((int(np.prod(vec.shape[:3])), 3))
+    run_ranges(_curl_range, out.shape[0], np.empty(0, np.int64), vec, *_tables(field.grid), out)
+    return out.reshape(vec.shape)
 
 
 def vorticity_at(field, points) -> np.ndarray:
     """The curl at ``points`` (N, 3): the node curl at the corners of their cells only, sampled
-    trilinearly as the field is (NaN outside or in a cell whose corners that count are NaN)."""
+    trilinearly as the field is (NaN outside or in a cell whose corners that count are NaN).
+
+    Its memory follows the points, not the grid: a byte per node marks the corners, another
+    counts them (a marked node's rank among all of them is its row), and the curl is kept at
+    the marked nodes only.  (A grid-sized curl array, even written only at those nodes, cost a
+    page fault for every 4 KiB page they touched: a third of the time.)"""
     g = field.grid
     vec = np.ascontiguousarray(field.vector, dtype=np.float64)
     pts = np.ascontiguousarray(points, dtype=np.float64)
-    mark = np.zeros(vec.shape[:3], np.uint8)
+    shape = np.array(vec.shape[:3], np.int64)
+    n_nodes = int(np.prod(shape))
+    words = np.zeros((n_nodes + 7) // 8, np.uint64)  # the marks, padded to whole words
+    mark = words.view(np.uint8)[:n_nodes].reshape(vec.shape[:3])
     run_ranges(_mark_range, pts.shape[0], *g.kernel_args(), pts, mark)
-    ids = np.empty(mark.size, np.int64)  # (only the first ``count`` are written and read)
-    ids = ids[:_marked(mark, ids)]
-    node_curl = np.empty(vec.shape)  # only the marked nodes are written, and read
+    ids = np.empty(min(n_nodes, 8 * pts.shape[0]), np.int64)
+    base = np.empty(words.size, np.int64)
+    ids = ids[:_rank(words, ids, base)]
+    rows = np.empty((ids.size, 3))
     if ids.size:
-        run_ranges(_curl_range, ids.size, ids, vec, *_tables(g), node_curl)
+        run_ranges(_curl_range, ids.size, ids, vec, *_tables(g), rows)
     out = np.empty((pts.shape[0], 3))
-    status = np.empty(pts.shape[0], np.int8)
-    interp.sample_vectors(*g.kernel_args(), node_curl, pts, out, status)
+    run_ranges(_sample_rows, pts.shape[0], *g.kernel_args(), shape, words, base, rows, pts, out)
     return out
