@@ -16,9 +16,35 @@ path per division).  Constants go to them typed (``np.int64(0)``): a literal 0 o
 argument compiles one more copy per value.
 """
 
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 _FLAGS = {"cache": True, "_nrt": False, "error_model": "numpy", "no_cpython_wrapper": True,
           "no_cfunc_wrapper": True}
 helper = njit(**_FLAGS)
 inline = njit(forceinline=True, **_FLAGS)
+
+
+@intrinsic
+def prefetch(typingctx, arr, idx):
+    """Ask the cache for the element ``arr.flat[idx]`` (C-contiguous ``arr``).  A hint only:
+    no value is read, results are unchanged, and an address off the array cannot fault."""
+    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        ary = context.make_array(sig.args[0])(context, builder, args[0])
+        item = context.get_abi_sizeof(context.get_data_type(sig.args[0].dtype))
+        off = builder.mul(context.cast(builder, args[1], sig.args[1], types.intp),
+                          context.get_constant(types.intp, item))
+        ptr = builder.gep(builder.bitcast(ary.data, ir.IntType(8).as_pointer()), [off])
+        i32 = ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [ptr.type, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0")
+        # read, keep in all cache levels, data cache
+        builder.call(fn, [ptr, ir.Constant(i32, 0), ir.Constant(i32, 3), ir.Constant(i32, 1)])
+        return context.get_dummy_value()
+
+    return types.void(arr, idx), codegen

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from ..integrate.threads import run_ranges
-from ..jit import inline
+from ..jit import inline, prefetch
 from . import interp
 
 # -- the derivative along one axis, as np.gradient forms it --------------------------------
@@ -204,6 +204,9 @@ def _derivative(vec, comp, axis, i, j, k, mode, nodes, w, fbn, fbw, off):
     return np.nan
 
 
+AHEAD_NODES = 16  # how far ahead the node curl prefetches neighbours
+
+
 @njit(cache=True, nogil=True)
 def _curl_range(start, stop, ids, vec, mode, nodes, w, fbn, fbw, off, out):
     """The curl at nodes ids[start:stop] (flat node indices; ids empty: the nodes start..stop
@@ -211,6 +214,10 @@ def _curl_range(start, stop, ids, vec, mode, nodes, w, fbn, fbw, off, out):
     ny, nz = vec.shape[1], vec.shape[2]
     x, y, z = np.int64(0), np.int64(1), np.int64(2)  # typed: a literal compiles a copy per value
     for n in range(start, stop):
+        if ids.size and n + AHEAD_NODES < stop:  # a marked node further on: its x and y
+            p = ids[n + AHEAD_NODES] * 3          # neighbours (hints: off the array is harmless)
+            for dn in (-ny * nz * 3, ny * nz * 3, -nz * 3, nz * 3):
+                prefetch(vec, p + dn)
         q = ids[n] if ids.size else n
         i, j, k = q // (ny * nz), (q // nz) % ny, q % nz
         out[n, 0] = (_derivative(vec, z, y, i, j, k, mode, nodes, w, fbn, fbw, off)
@@ -261,6 +268,39 @@ def _row(words, base, q):
     return base[b] + np.int64((below * np.uint64(0x0101010101010101)) >> np.uint64(56))
 
 
+@inline
+def _guess_nodes(gx, gy, gz, period, inv, shape, pts, m):
+    """The flat index of the first corner of point m's cell (interp.guess_cell's: uniform axes
+    only, else -1) and the offsets of its upper corners along x and y."""
+    i = interp.guess_cell(gx, period[0], inv[0], pts[m, 0])
+    j = interp.guess_cell(gy, period[1], inv[1], pts[m, 1])
+    k = interp.guess_cell(gz, period[2], inv[2], pts[m, 2])
+    if i < 0 or j < 0 or k < 0:
+        return np.int64(-1), np.int64(0), np.int64(0)
+    ny, nz = shape[1], shape[2]
+    di = ny * nz if i + 1 < shape[0] else -i * ny * nz
+    dj = nz if j + 1 < ny else -j * nz
+    return (i * ny + j) * nz + k, di, dj
+
+
+@inline
+def _prefetch_counts(words, base, gx, gy, gz, period, inv, shape, pts, m):
+    q, di, dj = _guess_nodes(gx, gy, gz, period, inv, shape, pts, m)
+    if q >= 0:
+        for c in (q, q + di, q + dj, q + di + dj):
+            prefetch(words, c >> 3)
+            prefetch(base, c >> 3)
+
+
+@inline
+def _prefetch_rows(words, base, rows, gx, gy, gz, period, inv, shape, pts, m):
+    q, di, dj = _guess_nodes(gx, gy, gz, period, inv, shape, pts, m)
+    if q >= 0:
+        for c in (q, q + di, q + dj, q + di + dj):
+            if words[c >> 3]:  # (a guess one cell off may find no marks)
+                prefetch(rows, 3 * min(_row(words, base, c), rows.shape[0] - 1))
+
+
 @njit(cache=True, nogil=True)
 def _sample_rows(start, stop, gx, gy, gz, period, inv, shape, words, base, rows, pts, out):
     """``interp.sample_vectors`` of a node field held only at the marked nodes, as ``rows``
@@ -268,6 +308,10 @@ def _sample_rows(start, stop, gx, gy, gz, period, inv, shape, words, base, rows,
     counts is NaN."""
     nx, ny, nz = shape[0], shape[1], shape[2]
     for n in range(start, stop):
+        if n + 2 * interp.AHEAD < stop:  # the counts of a cell further on, then its rows
+            _prefetch_counts(words, base, gx, gy, gz, period, inv, shape, pts, n + 2 * interp.AHEAD)
+        if n + interp.AHEAD < stop:
+            _prefetch_rows(words, base, rows, gx, gy, gz, period, inv, shape, pts, n + interp.AHEAD)
         i, j, k, tx, ty, tz, ok = interp.locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1],
                                                 pts[n, 2])
         o0 = o1 = o2 = np.nan

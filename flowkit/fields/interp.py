@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit
 
 from ..integrate.threads import run_ranges
-from ..jit import inline
+from ..jit import inline, prefetch
 
 INSIDE = 0
 OUTSIDE = 1
@@ -69,6 +69,45 @@ def locate_axis(c, period, inv, x):
             i = 0
     t = (x - c[i]) / (c[i + 1] - c[i])
     return i, min(max(t, 0.0), 1.0)
+
+
+@inline
+def guess_cell(c, period, inv, x):
+    """Cell index of x on a uniform axis by one multiply (clamped; -1 for a non-uniform axis):
+    only to choose what to prefetch, so an index one off near a face does no harm."""
+    if inv <= 0.0 or not (abs(x) < 1e300):
+        return -1
+    n = c.size
+    r = (x - c[0]) * inv
+    if period > 0.0:
+        r = r % (n if c[0] + period - c[n - 1] > 0.0 else n - 1)
+    return min(max(int(r), 0), n - 2)
+
+
+@inline
+def prefetch_cell(a, nc, gx, gy, gz, period, inv, px, py, pz, last):
+    """Prefetch the corners of the cell holding (px, py, pz) on a uniform grid from ``a``, nc
+    values per node (C order: the field's vectors, nc = 3, or a scalar, nc = 1), unless it is
+    ``last`` (flat index of the cell's first corner, returned): the cache lines a later read
+    of that cell touches, fetched while other work runs instead of in its dependent chain."""
+    i = guess_cell(gx, period[0], inv[0], px)
+    j = guess_cell(gy, period[1], inv[1], py)
+    k = guess_cell(gz, period[2], inv[2], pz)
+    if i < 0 or j < 0 or k < 0:
+        return last
+    nx, ny, nz = gx.size, gy.size, gz.size
+    base = ((i * ny + j) * nz + k) * nc
+    if base == last:
+        return last
+    # corners (i or i + 1, j or j + 1, k and k + 1), node 0 after the last on a wrapped axis;
+    # no integer division here: the tracing kernel runs this for every stage of a step
+    di = (ny * nz * nc) if i + 1 < nx else -i * ny * nz * nc
+    dj = (nz * nc) if j + 1 < ny else -j * nz * nc
+    dk = 2 * nc - 1 if k + 1 < nz else nc - 1 - nc * k  # last value of the (k + 1) corner
+    for b in (base, base + di, base + dj, base + di + dj):
+        prefetch(a, b)
+        prefetch(a, b + dk)
+    return base
 
 
 @inline
@@ -140,6 +179,12 @@ def trilinear_scalar(arr, i, j, k, tx, ty, tz):
     return out, False
 
 
+# How many points ahead the samplers prefetch a point's cell: its corners' memory latency then
+# overlaps the points between (8: 2.1-2.3x faster than none on ABC 193^3 and 385^3; 4 and 16
+# gained less)
+AHEAD = 8
+
+
 # The vectorised sampler: a nogil loop over a range of points, run on ranges by Python threads
 # (integrate/threads.py, as the tracing kernel is) instead of a prange loop, whose parallel
 # gufunc cost seconds of compilation on every fresh machine.  One kernel samples a vector, a
@@ -147,7 +192,18 @@ def trilinear_scalar(arr, i, j, k, tx, ty, tz):
 @njit(cache=True, nogil=True)
 def _sample_range(start, stop, gx, gy, gz, period, inv, vec, arr, pts, out, out_s, status):
     with_vec, with_arr = vec.shape[0] > 0, arr.shape[0] > 0
+    one, three, none = np.int64(1), np.int64(3), np.int64(-1)
+    # the scalar as nodes of one value, so that prefetch_cell compiles for 4-D arrays only
+    arr4 = arr.reshape((arr.shape[0], arr.shape[1], arr.shape[2], 1))
     for n in range(start, stop):
+        if n + AHEAD < stop:  # (a line's vertices rarely share a cell on a large grid)
+            m = n + AHEAD
+            if with_vec:
+                prefetch_cell(vec, three, gx, gy, gz, period, inv, pts[m, 0], pts[m, 1], pts[m, 2],
+                              none)
+            if with_arr:
+                prefetch_cell(arr4, one, gx, gy, gz, period, inv, pts[m, 0], pts[m, 1], pts[m, 2],
+                              none)
         i, j, k, tx, ty, tz, ok = locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1], pts[n, 2])
         if not ok:
             if with_vec:

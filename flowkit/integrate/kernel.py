@@ -32,13 +32,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit
 
-from ..fields.interp import locate_axis
+from ..fields.interp import locate_axis, prefetch_cell
 from ..jit import helper, inline
+from ..jit import prefetch as _prefetch  # noqa: F401 (lanes.py, benchmarks)
 from .reasons import Reason
 
 # the state, option and method-info columns (schema.py), all of them: callers address them as
@@ -142,67 +140,6 @@ R_SEED = int(Reason.SEED_OUTSIDE)
 
 
 # -- cells ----------------------------------------------------------------------------------
-@intrinsic
-def _prefetch(typingctx, arr, idx):
-    """Ask the cache for the element ``arr.flat[idx]`` (C-contiguous ``arr``).  A hint only:
-    no value is read, results are unchanged, and an address off the array cannot fault."""
-    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
-        return None
-
-    def codegen(context, builder, sig, args):
-        ary = context.make_array(sig.args[0])(context, builder, args[0])
-        item = context.get_abi_sizeof(context.get_data_type(sig.args[0].dtype))
-        off = builder.mul(context.cast(builder, args[1], sig.args[1], types.intp),
-                          context.get_constant(types.intp, item))
-        ptr = builder.gep(builder.bitcast(ary.data, ir.IntType(8).as_pointer()), [off])
-        i32 = ir.IntType(32)
-        fnty = ir.FunctionType(ir.VoidType(), [ptr.type, i32, i32, i32])
-        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0")
-        # read, keep in all cache levels, data cache
-        builder.call(fn, [ptr, ir.Constant(i32, 0), ir.Constant(i32, 3), ir.Constant(i32, 1)])
-        return context.get_dummy_value()
-
-    return types.void(arr, idx), codegen
-
-
-@inline
-def _node_index(c, period, inv, x):
-    """Cell index of x on a uniform axis by one multiply (clamped; -1 for a non-uniform axis):
-    only to choose what to prefetch, so an index one off near a face does no harm."""
-    if inv <= 0.0 or not (abs(x) < 1e300):
-        return -1
-    n = c.size
-    r = (x - c[0]) * inv
-    if period > 0.0:
-        r = r % (n if c[0] + period - c[n - 1] > 0.0 else n - 1)
-    return min(max(int(r), 0), n - 2)
-
-
-@inline
-def _prefetch_cell(vec, gx, gy, gz, period, inv, px, py, pz, last):
-    """Prefetch the corners of the cell holding (px, py, pz) on a uniform grid, unless it is
-    ``last`` (flat index of the cell's first corner, returned): the cache lines a later
-    ``_gather`` of that cell reads, fetched while the step computes instead of in its chain."""
-    i = _node_index(gx, period[0], inv[0], px)
-    j = _node_index(gy, period[1], inv[1], py)
-    k = _node_index(gz, period[2], inv[2], pz)
-    if i < 0 or j < 0 or k < 0:
-        return last
-    nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
-    base = ((i * ny + j) * nz + k) * 3
-    if base == last:
-        return last
-    # corners (i or i + 1, j or j + 1, k and k + 1), node 0 after the last on a wrapped axis;
-    # no integer division here: this runs for every stage of a step
-    di = (ny * nz * 3) if i + 1 < nx else -i * ny * nz * 3
-    dj = (nz * 3) if j + 1 < ny else -j * nz * 3
-    dk = 5 if k + 1 < nz else 2 - 3 * k  # last component of the (k + 1) corner
-    for b in (base, base + di, base + dj, base + di + dj):
-        _prefetch(vec, b)
-        _prefetch(vec, b + dk)
-    return base
-
-
 @inline
 def _n_cells(c, period):
     n = c.size
@@ -954,15 +891,16 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             if long:
                 _copy_cell(ci, cf, coef, ci0, cf0, coef0)
             if inc:
-                _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + hs * k[0, 0],
-                               y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], np.int64(-1))
+                prefetch_cell(vec, C3, gx, gy, gz, period, inv, y[0] + hs * k[0, 0],
+                              y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], np.int64(-1))
             else:
                 last = np.int64(-1)
                 for st in range(1, n_step):
                     if mc[st] != mc[st - 1]:
                         ch = mc[st] * hs
-                        last = _prefetch_cell(vec, gx, gy, gz, period, inv, y[0] + ch * k[0, 0],
-                                              y[1] + ch * k[0, 1], y[2] + ch * k[0, 2], last)
+                        last = prefetch_cell(vec, C3, gx, gy, gz, period, inv,
+                                             y[0] + ch * k[0, 0], y[1] + ch * k[0, 1],
+                                             y[2] + ch * k[0, 2], last)
 
             # stages
             for st in range(1, n_err):
