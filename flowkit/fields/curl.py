@@ -233,9 +233,10 @@ def _mark_range(start, stop, gx, gy, gz, period, inv, pts, mark):
     """mark[i, j, k] = 1 at the 8 corners of the cell of every point start..stop (the cell the
     samplers locate; threads may write the same 1 to the same byte)."""
     nx, ny, nz = mark.shape
+    i = j = k = np.int64(-1)  # the last point's cell
     for n in range(start, stop):
-        i, j, k, _, _, _, ok = interp.locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1],
-                                             pts[n, 2])
+        i, j, k, _, _, _, ok = interp.locate_near(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1],
+                                                  pts[n, 2], i, j, k)
         if ok:
             i1, j1, k1 = interp.upper(i, nx), interp.upper(j, ny), interp.upper(k, nz)
             for c in range(8):
@@ -269,14 +270,9 @@ def _row(words, base, q):
 
 
 @inline
-def _guess_nodes(gx, gy, gz, period, inv, shape, pts, m):
-    """The flat index of the first corner of point m's cell (interp.guess_cell's: uniform axes
-    only, else -1) and the offsets of its upper corners along x and y."""
-    i = interp.guess_cell(gx, period[0], inv[0], pts[m, 0])
-    j = interp.guess_cell(gy, period[1], inv[1], pts[m, 1])
-    k = interp.guess_cell(gz, period[2], inv[2], pts[m, 2])
-    if i < 0 or j < 0 or k < 0:
-        return np.int64(-1), np.int64(0), np.int64(0)
+def _corner_nodes(shape, i, j, k):
+    """The flat index of cell (i, j, k)'s first corner and the offsets of its upper corners
+    along x and y (node 0 after the last on a wrapped axis)."""
     ny, nz = shape[1], shape[2]
     di = ny * nz if i + 1 < shape[0] else -i * ny * nz
     dj = nz if j + 1 < ny else -j * nz
@@ -284,47 +280,58 @@ def _guess_nodes(gx, gy, gz, period, inv, shape, pts, m):
 
 
 @inline
-def _prefetch_counts(words, base, gx, gy, gz, period, inv, shape, pts, m):
-    q, di, dj = _guess_nodes(gx, gy, gz, period, inv, shape, pts, m)
-    if q >= 0:
-        for c in (q, q + di, q + dj, q + di + dj):
-            prefetch(words, c >> 3)
-            prefetch(base, c >> 3)
-
-
-@inline
-def _prefetch_rows(words, base, rows, gx, gy, gz, period, inv, shape, pts, m):
-    q, di, dj = _guess_nodes(gx, gy, gz, period, inv, shape, pts, m)
-    if q >= 0:
-        for c in (q, q + di, q + dj, q + di + dj):
-            if words[c >> 3]:  # (a guess one cell off may find no marks)
-                prefetch(rows, 3 * min(_row(words, base, c), rows.shape[0] - 1))
+def _prefetch_counts(words, base, shape, i, j, k):
+    q, di, dj = _corner_nodes(shape, i, j, k)
+    for c in (q, q + di, q + dj, q + di + dj):
+        prefetch(words, c >> 3)
+        prefetch(base, c >> 3)
 
 
 @njit(cache=True, nogil=True)
 def _sample_rows(start, stop, gx, gy, gz, period, inv, shape, words, base, rows, pts, out):
     """``interp.sample_vectors`` of a node field held only at the marked nodes, as ``rows``
     (``_rank``'s order): the same sums, so the same values, NaN outside or where a corner that
-    counts is NaN."""
+    counts is NaN.  A point is located 2 AHEAD points before it is sampled (its cell's counts
+    prefetched then), its corners' rows found and prefetched AHEAD points before; cells, local
+    coordinates and rows wait in a ring of 2 AHEAD slots."""
     nx, ny, nz = shape[0], shape[1], shape[2]
-    for n in range(start, stop):
-        if n + 2 * interp.AHEAD < stop:  # the counts of a cell further on, then its rows
-            _prefetch_counts(words, base, gx, gy, gz, period, inv, shape, pts, n + 2 * interp.AHEAD)
-        if n + interp.AHEAD < stop:
-            _prefetch_rows(words, base, rows, gx, gy, gz, period, inv, shape, pts, n + interp.AHEAD)
-        i, j, k, tx, ty, tz, ok = interp.locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1],
-                                                pts[n, 2])
+    A, R = interp.AHEAD, 2 * interp.AHEAD
+    cell, loc = np.empty((R, 4), np.int64), np.empty((R, 3))
+    corner_rows = np.empty((R, 8), np.int64)
+    i = j = k = np.int64(-1)  # the last point located: the next one's first guess
+    for m in range(start, stop + R):
+        n, r, rp = m - R, (m - start) % R, (m - A - start) % R
+        ok = cell[r, 3] != 0
+        ci, cj, ck = cell[r, 0], cell[r, 1], cell[r, 2]
+        tx, ty, tz = loc[r, 0], loc[r, 1], loc[r, 2]
+        if start <= m - A < stop and cell[rp, 3] != 0:  # point m - A: its counts are in
+            pi, pj, pk = cell[rp, 0], cell[rp, 1], cell[rp, 2]
+            i1, j1, k1 = interp.upper(pi, nx), interp.upper(pj, ny), interp.upper(pk, nz)
+            for c in range(8):
+                ii, jj, kk, _ = interp.corner(c, pi, pj, pk, i1, j1, k1, 0.0, 0.0, 0.0)
+                q = _row(words, base, (ii * ny + jj) * nz + kk)
+                corner_rows[rp, c] = q
+                prefetch(rows, 3 * q)
+        if m < stop:
+            i, j, k, sx, sy, sz, okm = interp.locate_near(gx, gy, gz, period, inv, pts[m, 0],
+                                                          pts[m, 1], pts[m, 2], i, j, k)
+            cell[r, 0], cell[r, 1], cell[r, 2], cell[r, 3] = i, j, k, okm
+            loc[r, 0], loc[r, 1], loc[r, 2] = sx, sy, sz
+            if okm:
+                _prefetch_counts(words, base, shape, i, j, k)
+        if n < start:
+            continue
         o0 = o1 = o2 = np.nan
         if ok:
-            i1, j1, k1 = interp.upper(i, nx), interp.upper(j, ny), interp.upper(k, nz)
+            i1, j1, k1 = interp.upper(ci, nx), interp.upper(cj, ny), interp.upper(ck, nz)
             o0 = o1 = o2 = 0.0
             for c in range(8):
-                ii, jj, kk, w = interp.corner(c, i, j, k, i1, j1, k1, tx, ty, tz)
+                _, _, _, w = interp.corner(c, ci, cj, ck, i1, j1, k1, tx, ty, tz)
                 if w != 0.0:
-                    r = _row(words, base, (ii * ny + jj) * nz + kk)
-                    o0 += w * rows[r, 0]
-                    o1 += w * rows[r, 1]
-                    o2 += w * rows[r, 2]
+                    q = corner_rows[r, c]
+                    o0 += w * rows[q, 0]
+                    o1 += w * rows[q, 1]
+                    o2 += w * rows[q, 2]
             o0, o1, o2, _ = interp.finite_or_nan(o0, o1, o2)
         out[n, 0], out[n, 1], out[n, 2] = o0, o1, o2
 

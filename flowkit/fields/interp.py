@@ -28,6 +28,14 @@ def locate_axis(c, period, inv, x):
     For a periodic axis the cell with index n-1 (when it exists) is the wrap cell whose upper
     node is node 0; callers take the upper node as (i + 1) % n.
     """
+    return locate_axis_near(c, period, inv, x, np.int64(-1))
+
+
+@inline
+def locate_axis_near(c, period, inv, x, hint):
+    """``locate_axis``, on a non-uniform axis trying the cell ``hint`` and its two neighbours
+    before the bisection (a line's next vertex is mostly in its last one's cell or beside it):
+    the same cell, since a cell whose nodes bracket x is the one the bisection finds."""
     n = c.size
     c0 = c[0]
     if period > 0.0:
@@ -52,6 +60,12 @@ def locate_axis(c, period, inv, x):
             i -= 1
         elif x > c[i + 1] and i < n - 2:
             i += 1
+    elif hint >= 0 and _brackets(c, hint, x):
+        i = hint
+    elif hint >= 0 and _brackets(c, hint + 1, x):
+        i = hint + 1
+    elif hint >= 1 and _brackets(c, hint - 1, x):
+        i = hint - 1
     else:
         # bisection for the first node above x (np.searchsorted's side="right", NaN last), by
         # hand: numba's generic searchsorted costs a second of compilation on a fresh machine
@@ -95,27 +109,44 @@ def prefetch_cell(a, nc, gx, gy, gz, period, inv, px, py, pz, last):
     k = guess_cell(gz, period[2], inv[2], pz)
     if i < 0 or j < 0 or k < 0:
         return last
-    nx, ny, nz = gx.size, gy.size, gz.size
+    base = ((i * gy.size + j) * gz.size + k) * nc
+    if base != last:
+        prefetch_corners(a, nc, gx.size, gy.size, gz.size, i, j, k)
+    return base
+
+
+@inline
+def prefetch_corners(a, nc, nx, ny, nz, i, j, k):
+    """Prefetch the corners of cell (i, j, k) (node 0 after the last on a wrapped axis) from
+    ``a``, nc values per node; no integer division: the tracing kernel runs this every stage."""
     base = ((i * ny + j) * nz + k) * nc
-    if base == last:
-        return last
-    # corners (i or i + 1, j or j + 1, k and k + 1), node 0 after the last on a wrapped axis;
-    # no integer division here: the tracing kernel runs this for every stage of a step
     di = (ny * nz * nc) if i + 1 < nx else -i * ny * nz * nc
     dj = (nz * nc) if j + 1 < ny else -j * nz * nc
     dk = 2 * nc - 1 if k + 1 < nz else nc - 1 - nc * k  # last value of the (k + 1) corner
     for b in (base, base + di, base + dj, base + di + dj):
         prefetch(a, b)
         prefetch(a, b + dk)
-    return base
+
+@inline
+def _brackets(c, i, x):
+    """x in [c[i], c[i + 1]) on an axis with a cell i (the bisection's cell for such an x)."""
+    return i < c.size - 1 and c[i] <= x and x < c[i + 1]
 
 
 @inline
 def locate(gx, gy, gz, period, inv, px, py, pz):
     """(i, j, k, tx, ty, tz, inside) of a point."""
-    i, tx = locate_axis(gx, period[0], inv[0], px)
-    j, ty = locate_axis(gy, period[1], inv[1], py)
-    k, tz = locate_axis(gz, period[2], inv[2], pz)
+    none = np.int64(-1)
+    return locate_near(gx, gy, gz, period, inv, px, py, pz, none, none, none)
+
+
+@inline
+def locate_near(gx, gy, gz, period, inv, px, py, pz, hi, hj, hk):
+    """``locate``, trying the cell (hi, hj, hk) and its neighbours first on non-uniform axes
+    (``locate_axis_near``): the samplers pass the last point's, as a line's vertices come."""
+    i, tx = locate_axis_near(gx, period[0], inv[0], px, hi)
+    j, ty = locate_axis_near(gy, period[1], inv[1], py, hj)
+    k, tz = locate_axis_near(gz, period[2], inv[2], pz, hk)
     ok = i >= 0 and j >= 0 and k >= 0
     return i, j, k, tx, ty, tz, ok
 
@@ -192,19 +223,29 @@ AHEAD = 8
 @njit(cache=True, nogil=True)
 def _sample_range(start, stop, gx, gy, gz, period, inv, vec, arr, pts, out, out_s, status):
     with_vec, with_arr = vec.shape[0] > 0, arr.shape[0] > 0
-    one, three, none = np.int64(1), np.int64(3), np.int64(-1)
-    # the scalar as nodes of one value, so that prefetch_cell compiles for 4-D arrays only
+    one, three = np.int64(1), np.int64(3)
+    # the scalar as nodes of one value, so that prefetch_corners compiles for 4-D arrays only
     arr4 = arr.reshape((arr.shape[0], arr.shape[1], arr.shape[2], 1))
-    for n in range(start, stop):
-        if n + AHEAD < stop:  # (a line's vertices rarely share a cell on a large grid)
-            m = n + AHEAD
-            if with_vec:
-                prefetch_cell(vec, three, gx, gy, gz, period, inv, pts[m, 0], pts[m, 1], pts[m, 2],
-                              none)
-            if with_arr:
-                prefetch_cell(arr4, one, gx, gy, gz, period, inv, pts[m, 0], pts[m, 1], pts[m, 2],
-                              none)
-        i, j, k, tx, ty, tz, ok = locate(gx, gy, gz, period, inv, pts[n, 0], pts[n, 1], pts[n, 2])
+    # each point is located AHEAD points before it is sampled, its cell's corners prefetched
+    # then: cells and local coordinates wait in a ring of AHEAD slots
+    cell, loc = np.empty((AHEAD, 4), np.int64), np.empty((AHEAD, 3))
+    i = j = k = np.int64(-1)  # the last point located: the next one's first guess
+    nx, ny, nz = gx.size, gy.size, gz.size
+    for m in range(start, stop + AHEAD):
+        n, r = m - AHEAD, (m - start) % AHEAD  # point n leaves the slot point m takes
+        ci, cj, ck, ok = cell[r, 0], cell[r, 1], cell[r, 2], cell[r, 3] != 0
+        sx, sy, sz = loc[r, 0], loc[r, 1], loc[r, 2]
+        if m < stop:  # locate point m into the slot, and ask for its cell
+            i, j, k, tx, ty, tz, okm = locate_near(gx, gy, gz, period, inv, pts[m, 0],
+                                                   pts[m, 1], pts[m, 2], i, j, k)
+            cell[r, 0], cell[r, 1], cell[r, 2], cell[r, 3] = i, j, k, okm
+            loc[r, 0], loc[r, 1], loc[r, 2] = tx, ty, tz
+            if okm and with_vec:
+                prefetch_corners(vec, three, nx, ny, nz, i, j, k)
+            if okm and with_arr:
+                prefetch_corners(arr4, one, nx, ny, nz, i, j, k)
+        if n < start:
+            continue
         if not ok:
             if with_vec:
                 out[n, 0] = np.nan
@@ -216,12 +257,12 @@ def _sample_range(start, stop, gx, gy, gz, period, inv, vec, arr, pts, out, out_
             continue
         bad = False
         if with_vec:
-            u, v, w, bad = trilinear_vector(vec, i, j, k, tx, ty, tz)
+            u, v, w, bad = trilinear_vector(vec, ci, cj, ck, sx, sy, sz)
             out[n, 0] = u
             out[n, 1] = v
             out[n, 2] = w
         if with_arr:
-            val, bad_s = trilinear_scalar(arr, i, j, k, tx, ty, tz)
+            val, bad_s = trilinear_scalar(arr, ci, cj, ck, sx, sy, sz)
             out_s[n] = val
             bad = bad or bad_s
         status[n] = NAN_CELL if bad else INSIDE
