@@ -309,3 +309,36 @@ def test_norm_is_numpys_to_the_bit():
         for a in (v, v.astype(np.float32)):
             got, want = attributes.norm(a), np.linalg.norm(a, axis=1)
             assert got.dtype == want.dtype and got.tobytes() == want.tobytes()
+
+
+def test_samples_of_points_in_runs_on_a_graded_grid_are_the_bisections_cells():
+    """The samplers try the last point's cell (and its neighbours) before the bisection on a
+    non-uniform axis and locate points ahead of sampling them: along runs of points forward and
+    back, through nodes and faces, the samples are exactly those of np.searchsorted's cells."""
+    x = np.cumsum(np.r_[0.0, 1.3 ** np.arange(12)])  # graded, 13 nodes
+    y, z = np.linspace(-1.0, 2.0, 7), np.r_[0.0, 0.1, 0.5, 1.5, 1.6, 3.0]
+    g = Grid.from_axes(x, y, z, where="graded test grid")
+    v = np.random.default_rng(7).normal(size=(*g.shape, 3))
+    f = Field(g, v)
+    t = np.linspace(0.0, 1.0, 3001)[:, None]
+    lo, hi = np.array([x[0], y[0], z[0]]), np.array([x[-1], y[-1], z[-1]])
+    run = lo + (hi - lo) * t * np.array([1.0, 0.7, 0.9])
+    nodes = np.stack(np.meshgrid(x, y[:2], z[:2], indexing="ij"), -1).reshape(-1, 3)
+    pts = np.concatenate([run, run[::-1], nodes, run[::7], np.random.default_rng(8).permutation(run)])
+    got, status = np.empty((len(pts), 3)), np.empty(len(pts), np.int8)
+    interp.sample_vectors(*g.kernel_args(), v, pts, got, status)
+    want = np.zeros((len(pts), 3))
+    cells, frac = [], []
+    for a, c in enumerate((x, y, z)):
+        i = np.clip(np.searchsorted(c, pts[:, a], side="right") - 1, 0, c.size - 2)
+        cells.append(i)
+        frac.append(np.clip((pts[:, a] - c[i]) / (c[i + 1] - c[i]), 0.0, 1.0))
+    for corner in range(8):  # interp.trilinear_vector's sum, corner by corner, in its order
+        up = [(corner >> a) & 1 for a in range(3)]
+        w = np.ones(len(pts))
+        for a in range(3):
+            w = w * (frac[a] if up[a] else 1.0 - frac[a])
+        vals = v[cells[0] + up[0], cells[1] + up[1], cells[2] + up[2]]
+        want += np.where(w[:, None] != 0.0, w[:, None] * vals, 0.0)
+    assert (status == interp.INSIDE).all()
+    assert np.array_equal(got, want)
