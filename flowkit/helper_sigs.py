@@ -17,8 +17,6 @@ HELPERS = {
         ("flowkit.integrate.kernel", "_put", (F3, F3, I1, I, F, F, F, F, F,)),
         ("flowkit.integrate.kernel", "_emit_pending", (I, I, F2, I2, F, I, I, F, F, F3, F3, I1,
          I,)),
-        ("flowkit.fields.interp", "_brackets", (F1, I, F,)),
-        ("flowkit.fields.interp", "locate_axis_near", (F1, F, F, F, I,)),
         ("flowkit.fields.interp", "locate_axis", (F1, F, F, F,)),
         ("flowkit.integrate.kernel", "_width", (F1, F, I,)),
         ("flowkit.integrate.kernel", "_locate_cell", (F1, F, F, F,)),

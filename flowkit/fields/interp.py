@@ -28,14 +28,6 @@ def locate_axis(c, period, inv, x):
     For a periodic axis the cell with index n-1 (when it exists) is the wrap cell whose upper
     node is node 0; callers take the upper node as (i + 1) % n.
     """
-    return locate_axis_near(c, period, inv, x, np.int64(-1))
-
-
-@inline
-def locate_axis_near(c, period, inv, x, hint):
-    """``locate_axis``, on a non-uniform axis trying the cell ``hint`` and its two neighbours
-    before the bisection (a line's next vertex is mostly in its last one's cell or beside it):
-    the same cell, since a cell whose nodes bracket x is the one the bisection finds."""
     n = c.size
     c0 = c[0]
     if period > 0.0:
@@ -60,12 +52,6 @@ def locate_axis_near(c, period, inv, x, hint):
             i -= 1
         elif x > c[i + 1] and i < n - 2:
             i += 1
-    elif hint >= 0 and _brackets(c, hint, x):
-        i = hint
-    elif hint >= 0 and _brackets(c, hint + 1, x):
-        i = hint + 1
-    elif hint >= 1 and _brackets(c, hint - 1, x):
-        i = hint - 1
     else:
         # bisection for the first node above x (np.searchsorted's side="right", NaN last), by
         # hand: numba's generic searchsorted costs a second of compilation on a fresh machine
@@ -128,9 +114,16 @@ def prefetch_corners(a, nc, nx, ny, nz, i, j, k):
         prefetch(a, b + dk)
 
 @inline
-def _brackets(c, i, x):
-    """x in [c[i], c[i + 1]) on an axis with a cell i (the bisection's cell for such an x)."""
-    return i < c.size - 1 and c[i] <= x and x < c[i + 1]
+def locate_axis_near(c, period, inv, x, hint):
+    """``locate_axis``, on a bounded non-uniform axis trying the cell ``hint`` and its two
+    neighbours before the bisection (a line's next vertex is mostly in its last one's cell or
+    beside it): the same cell, since a cell whose nodes bracket x is the one the bisection
+    finds.  (Apart from locate_axis, which the tracing kernel compiles, to keep it small.)"""
+    if period == 0.0 and inv <= 0.0 and hint >= 0:
+        for i in (hint, hint + 1, hint - 1):
+            if 0 <= i < c.size - 1 and c[i] <= x and x < c[i + 1]:
+                return i, min(max((x - c[i]) / (c[i + 1] - c[i]), 0.0), 1.0)
+    return locate_axis(c, period, inv, x)
 
 
 @inline
