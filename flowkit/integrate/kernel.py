@@ -34,7 +34,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..fields.interp import locate_axis, prefetch_cell
+from ..fields.interp import locate_axis, prefetch_cell, prefetch_corners
 from ..jit import helper, inline
 from ..jit import prefetch as _prefetch  # noqa: F401 (lanes.py, benchmarks)
 from .reasons import Reason
@@ -352,15 +352,22 @@ def _onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, ci, cf, coef):
 
 @inline
 def _exit_time(d, y, k, cf):
-    """The step (in the line's parameter) at which y + h d k0 leaves the current cell."""
+    """The step (in the line's parameter) at which y + h d k0 leaves the current cell, and
+    the axis of the face it leaves by (-1: none)."""
     t_exit = np.inf
+    axis = -1
     for a in range(3):
         mv = d * k[0, a]
         if mv > 0.0:
-            t_exit = min(t_exit, (cf[3 + a] - y[a]) / mv)
+            ta = (cf[3 + a] - y[a]) / mv
         elif mv < 0.0:
-            t_exit = min(t_exit, (y[a] - cf[a]) / -mv)
-    return t_exit
+            ta = (y[a] - cf[a]) / -mv
+        else:
+            continue
+        if ta < t_exit:
+            axis = a
+        t_exit = min(t_exit, ta)
+    return t_exit, axis
 
 
 @inline
@@ -866,8 +873,9 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             hs = h
             long = False
             t_exit = np.inf
+            ax_exit = -1
             if aware:  # (fixed steps too: their stages would extend the cell's polynomial far out)
-                t_exit = _exit_time(d, y, k, cf)
+                t_exit, ax_exit = _exit_time(d, y, k, cf)
                 cap = cellfac * t_exit
                 if cap > 0.0 and abs(hs) > cap:
                     if cross and kwait == 0 and hk > KINK_CELLS * cap:
@@ -890,9 +898,17 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             inc = aware and not long  # every stage from the cell the step starts in
             if long:
                 _copy_cell(ci, cf, coef, ci0, cf0, coef0)
-            if inc:
-                prefetch_cell(vec, C3, gx, gy, gz, period, inv, y[0] + hs * k[0, 0],
-                              y[1] + hs * k[0, 1], y[2] + hs * k[0, 2], np.int64(-1))
+            if inc and ax_exit >= 0:  # the neighbour across the exit face, on any grid
+                nb0, nb1, nb2 = ci[0], ci[1], ci[2]
+                step = 1 if d * k[0, ax_exit] > 0.0 else -1
+                if ax_exit == 0:
+                    nb0 += step
+                elif ax_exit == 1:
+                    nb1 += step
+                else:
+                    nb2 += step
+                # (an index off the grid only asks for an address nobody reads: no fault)
+                prefetch_corners(vec, C3, gx.size, gy.size, gz.size, nb0, nb1, nb2)
             else:
                 last = np.int64(-1)
                 for st in range(1, n_step):

@@ -279,7 +279,7 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
             if reason >= 0:
                 break
             hs = h
-            t_exit = K._exit_time(d, y, k, cf)
+            t_exit, _ = K._exit_time(d, y, k, cf)
             cap = cellfac * t_exit
             if cap > 0.0 and abs(hs) > cap:
                 hs = d * cap
