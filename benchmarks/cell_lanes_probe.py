@@ -236,7 +236,7 @@ def main(argv=None) -> int:
     axis = field.grid.axes[0]
     dx = float(axis[1] - axis[0])
     numba.set_num_threads(1)
-    opts = dict(rtol=a.rtol, atol=a.rtol, max_length=p.length, cross_faces=False)
+    opts = {"rtol": a.rtol, "atol": a.rtol, "max_length": p.length, "cross_faces": False}
     lines = trace(field, seeds, **opts)
     fk_steps = int(lines.line_data["n_accepted"].sum()), int(lines.line_data["n_rejected"].sum())
     args = (seeds, float(axis[0]), dx, axis.size, vec, A, B, E, P, a.rtol, a.rtol, p.length,

@@ -319,7 +319,6 @@ def test_samples_of_points_in_runs_on_a_graded_grid_are_the_bisections_cells():
     y, z = np.linspace(-1.0, 2.0, 7), np.r_[0.0, 0.1, 0.5, 1.5, 1.6, 3.0]
     g = Grid.from_axes(x, y, z, where="graded test grid")
     v = np.random.default_rng(7).normal(size=(*g.shape, 3))
-    f = Field(g, v)
     t = np.linspace(0.0, 1.0, 3001)[:, None]
     lo, hi = np.array([x[0], y[0], z[0]]), np.array([x[-1], y[-1], z[-1]])
     run = lo + (hi - lo) * t * np.array([1.0, 0.7, 0.9])
