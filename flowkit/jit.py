@@ -27,9 +27,10 @@ through a C pointer.
 """
 
 from llvmlite import ir
-from numba import njit, types
+from numba import types
 from numba.core import cgutils, compiler, typed_passes, untyped_passes
 from numba.core.compiler_machinery import PassManager
+from numba.core.registry import CPUDispatcher
 from numba.extending import intrinsic
 
 
@@ -51,9 +52,33 @@ class Lean(compiler.CompilerBase):
 
 
 lean = {"pipeline_class": Lean, "no_cfunc_wrapper": True}
-_FLAGS = {"cache": True, "_nrt": False, "error_model": "numpy", "no_cpython_wrapper": True, **lean}
-helper = njit(**_FLAGS)
-inline = njit(forceinline=True, **_FLAGS)
+_OPTIONS = {"nopython": True, "boundscheck": None, "_nrt": False, "error_model": "numpy",
+            "no_cpython_wrapper": True, "no_cfunc_wrapper": True}
+
+
+class _Shared(CPUDispatcher):
+    """A helper's dispatcher that takes its turn with a second compile process, where one runs
+    (``parallel_compile.turn``): it waits for the other's copy instead of compiling its own."""
+
+    def compile(self, sig):
+        from . import parallel_compile  # (not at import: `python -m` runs that module)
+
+        with parallel_compile.turn(self, sig):
+            return super().compile(sig)
+
+
+def _jit(fn, **options):
+    d = _Shared(py_func=fn, locals={}, targetoptions={**_OPTIONS, **options}, pipeline_class=Lean)
+    d.enable_caching()
+    return d
+
+
+def helper(fn):
+    return _jit(fn)
+
+
+def inline(fn):
+    return _jit(fn, forceinline=True)
 
 
 @intrinsic

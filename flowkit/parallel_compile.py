@@ -6,11 +6,16 @@ while the other waits.  When the tracing kernel is about to be compiled here and
 cache does not hold it, ``start`` runs ``python -m flowkit.parallel_compile KERNEL`` beside
 it.  That process compiles the kernel's helpers into the same disk cache in the reverse of the
 order in which the kernel's typing asks for them, while this process types the kernel from the
-front: where this one reaches a helper that the other has cached, numba loads it instead of
-compiling it again.  The two meet about halfway; the kernel's own typing, lowering and LLVM
-optimisation stay here.  The machine code is the same, and so are the lines, bit for bit: a
-cached helper carries its optimised LLVM bitcode, which the kernel links and inlines exactly
-as it links a helper compiled in its own process.
+front.  They take turns (``turn``): each helper of the table is compiled by whichever process
+comes to it first, which claims it with a file in a folder the two share; the other waits for
+its done file and numba loads that copy from the disk cache.  Without the claims both compiled
+the helper they met at, the largest (``kernel._start`` and what it calls) at the same time, and
+this process learnt of the other's copy only after finishing its own.  The table lists callees
+before their callers, so the other process, walking it backwards, takes the callees of a helper
+this one is compiling from the far end: the work divides down to single helpers.  The
+kernel's own typing, lowering and LLVM optimisation stay here.  The machine code is the same,
+and so are the lines, bit for bit: a cached helper carries its optimised LLVM bitcode, which
+the kernel links and inlines exactly as it links a helper compiled in its own process.
 
 Not started on one core (the CPU set this process may use: a one-CPU container counts one),
 where numba's cache is not written (no writable folder), where ``sys.executable`` is not a plain
@@ -31,19 +36,26 @@ signature nobody asks for); it never changes what this process runs.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
+import hashlib
 import importlib
 import logging
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 import textwrap
 import threading
+import time
 from pathlib import Path
 
 from .numba_cache import in_disk_cache
 
 LOG = logging.getLogger("flowkit.compile")
 _started: set[str] = set()
+WAIT_S = 120.0  # the longest either process waits for the other's copy of one helper
 # the kernels whose helpers the other process compiles next, while this process lives
 NEXT = {"flowkit.integrate.kernel._advance_lines": ("flowkit.integrate.rosenbrock._lines",
                                                    "flowkit.integrate.pathlines._lines")}
@@ -76,6 +88,71 @@ def _writes_cache(dispatcher) -> bool:
     return path is not None and os.access(path, os.W_OK)
 
 
+class _Turns:
+    """Which process compiles which helper of the table: a claim file per helper and argument
+    types in a folder both share, taken by whichever process comes to it first; the other waits
+    for its done file and loads that copy from the disk cache."""
+
+    def __init__(self, folder: str, other_alive):
+        from .helper_sigs import HELPERS
+
+        self.folder, self.other_alive, self.mine = folder, other_alive, set()
+        self.table = {(m, n, sig) for entries in HELPERS.values() for m, n, sig in entries}
+
+    def _path(self, key) -> str:
+        return os.path.join(self.folder, hashlib.sha1(repr(key).encode()).hexdigest()[:20])
+
+    def claim(self, key) -> bool:
+        """True where this process compiles ``key`` (it took the claim, now or before)."""
+        if key in self.mine:
+            return True
+        try:
+            os.close(os.open(self._path(key) + ".claim", os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+        except FileExistsError:
+            return False
+        except OSError:  # the folder is gone (the first process ended): no more turns
+            pass
+        self.mine.add(key)
+        return True
+
+    def done(self, key) -> None:
+        with contextlib.suppress(OSError):
+            os.close(os.open(self._path(key) + ".done", os.O_CREAT | os.O_WRONLY))
+
+    def wait(self, key) -> None:
+        """Until the other process has stored ``key`` (or has ended, or ``WAIT_S`` passed)."""
+        done, end = self._path(key) + ".done", time.monotonic() + WAIT_S
+        while not os.path.exists(done) and self.other_alive() and time.monotonic() < end:
+            time.sleep(0.002)
+
+
+_turns: _Turns | None = None
+
+
+@contextlib.contextmanager
+def turn(dispatcher, sig):
+    """Around a helper's compilation (``jit._Shared.compile``): with a second process at work
+    and the helper in its table, compile it here only if this process claims it first; else wait
+    for the other's copy, which the compilation then loads from the disk cache."""
+    turns, key = _turns, None
+    if turns is not None:
+        from numba.core import sigutils
+
+        args = tuple(sigutils.normalize_signature(sig)[0])
+        f = dispatcher.py_func
+        k = (f.__module__, f.__qualname__, args)
+        if k in turns.table and args not in dispatcher.overloads:
+            if turns.claim(k):
+                key = k
+            else:
+                turns.wait(k)
+    try:
+        yield
+    finally:
+        if key is not None:
+            turns.done(key)
+
+
 def start(kernel: str, dispatcher) -> subprocess.Popen | None:
     """Start compiling ``kernel``'s helpers (a key of ``helper_sigs.HELPERS``) in a second
     process, once per process, unless that would not help (above); returns the process."""
@@ -87,13 +164,17 @@ def start(kernel: str, dispatcher) -> subprocess.Popen | None:
     root = str(Path(__file__).resolve().parent.parent)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         p for p in (root, os.environ.get("PYTHONPATH", "")) if p))
+    folder = tempfile.mkdtemp(prefix="flowkit-compile-")
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
     try:
-        proc = subprocess.Popen([_python(), "-m", "flowkit.parallel_compile", kernel],
+        proc = subprocess.Popen([_python(), "-m", "flowkit.parallel_compile", kernel, folder],
                                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL, env=env)
     except OSError as e:  # the interpreter cannot be started: compile here alone
         LOG.debug("no second compile process: %s", e)
         return None
+    global _turns
+    _turns = _Turns(folder, lambda: proc.poll() is None)
     # the reaper holds the process, and so the pipe to it, open until it ends (or this one does)
     threading.Thread(target=_reap, args=(proc,), daemon=True, name="flowkit-compile-reaper").start()
     return proc
@@ -106,12 +187,14 @@ def _reap(proc: subprocess.Popen) -> None:
 
 def compile_helpers(kernel: str, go_on=lambda: True) -> None:
     """Compile ``kernel``'s helpers, last asked for first (an entry that no longer matches its
-    function is skipped), while ``go_on()``."""
+    function, or that the first process has claimed, is skipped), while ``go_on()``."""
     from .helper_sigs import HELPERS
 
     for module, name, sig in reversed(HELPERS[kernel]):
         if not go_on():
             return
+        if _turns is not None and not _turns.claim((module, name, sig)):
+            continue
         try:
             getattr(importlib.import_module(module), name).compile(sig)
         except Exception as e:  # noqa: BLE001 (a stale entry: the kernel's process compiles it)
@@ -221,15 +304,20 @@ def main(argv=None) -> int:
     if argv == ["--write"]:
         print(write_table())
         return 0
-    (kernel,) = argv
+    kernel, *folder = argv  # (the folder of turns: where a first process takes its share)
     import flowkit  # noqa: F401 (the cache location, as in the process that started this one)
 
+    global _turns
     alive = _parent_alive()
+    if folder:
+        _turns = _Turns(folder[0], alive.is_set)
     compile_helpers(kernel)
     for nxt in NEXT.get(kernel, ()):
         compile_helpers(nxt, alive.is_set)
     return 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+if __name__ == "__main__":  # (main of the module flowkit imports, whose turns its helpers take)
+    from flowkit.parallel_compile import main as imported_main
+
+    sys.exit(imported_main())
