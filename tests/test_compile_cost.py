@@ -23,7 +23,7 @@ stale = [n for table in HELPERS.values() for m, n, sig in table
          if getattr(importlib.import_module(m), n).signatures not in ([], [sig])]
 """
 CODE = """
-import hashlib, json, logging
+import hashlib, json, logging, os
 import numba
 from numba.core import event
 compiled = []
@@ -53,9 +53,13 @@ sigs = {n: [str(x) for x in d.signatures] for n, d in vars(K).items()
         if isinstance(d, numba.core.registry.CPUDispatcher)}
 """ + STALE + """
 table = HELPERS["flowkit.integrate.kernel._advance_lines"]
+from flowkit import parallel_compile
+turns = parallel_compile._turns  # the helpers the second process claimed (None: none started)
+theirs = [] if turns is None else [k[1] for k in table if k not in turns.mine
+                                   and os.path.exists(turns._path(k) + ".claim")]
 print(json.dumps({"sigs": sigs, "lockstep": len(lanes.lockstep.signatures), "notices": notices,
                   "compiled": compiled, "points": digest.hexdigest(), "stale": stale,
-                  "table": sorted(n for m, n, sig in table)}))
+                  "table": sorted(n for m, n, sig in table), "theirs": theirs}))
 """
 
 
@@ -95,6 +99,38 @@ def test_default_trace_compiles_one_specialization_of_each_function(tmp_path):
     if parallel_compile.enabled():  # (two cores or more: a second process was started)
         loaded = set(alone["compiled"]) - set(together["compiled"])
         assert len(loaded) >= 5, f"the second process compiled only {sorted(loaded)}"
+        # they took turns: nothing the other process claimed was compiled here as well
+        assert together["theirs"] and not set(together["theirs"]) & set(together["compiled"])
+
+
+def test_turns_wait_for_the_claimant_and_not_for_a_dead_one(tmp_path, monkeypatch):
+    """A helper the other process claimed is waited for until its done file appears (then
+    loaded, not compiled); not once the other process has ended; and a claim is taken once."""
+    import threading
+    import time
+
+    from flowkit import parallel_compile
+    from flowkit.integrate import kernel
+
+    key = next(k for k in parallel_compile._Turns(str(tmp_path), bool).table if k[1] == "_norm3")
+    alive = threading.Event()
+    alive.set()
+    theirs = parallel_compile._Turns(str(tmp_path), alive.is_set)
+    ours = parallel_compile._Turns(str(tmp_path), alive.is_set)
+    assert theirs.claim(key) and theirs.claim(key) and not ours.claim(key)
+    monkeypatch.setattr(parallel_compile, "_turns", ours)
+    monkeypatch.setattr(kernel._norm3, "overloads", {})  # as in a process that has not compiled it
+    threading.Timer(0.3, theirs.done, (key,)).start()
+    t = time.monotonic()
+    with parallel_compile.turn(kernel._norm3, key[2]):
+        waited = time.monotonic() - t
+    assert 0.25 < waited < 5.0
+    key2 = next(k for k in ours.table if k[1] == "_width")
+    assert theirs.claim(key2)
+    alive.clear()  # the other process ended without storing it: compile here, at once
+    t = time.monotonic()
+    with parallel_compile.turn(kernel._width, key2[2]):
+        assert time.monotonic() - t < 0.25
 
 
 OPTIONS_CODE = """
