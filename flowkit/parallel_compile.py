@@ -301,9 +301,11 @@ def write_table(path: Path | None = None) -> Path:
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if argv == ["--write"]:
-        print(write_table())
-        return 0
+    if argv == ["--write"]:  # in a process of its own on an empty cache (see write_table)
+        with tempfile.TemporaryDirectory() as cache:
+            code = "from flowkit.parallel_compile import write_table; print(write_table())"
+            return subprocess.run([sys.executable, "-c", code], check=False,
+                                  env=dict(os.environ, NUMBA_CACHE_DIR=cache)).returncode
     kernel, *folder = argv  # (the folder of turns: where a first process takes its share)
     import flowkit  # noqa: F401 (the cache location, as in the process that started this one)
 
