@@ -19,10 +19,10 @@ LOG = logging.getLogger("flowkit.compile")
 DELAY = 2.0
 # qualified name of a kernel -> (what it is, typical cold compile seconds)
 TYPICAL = {
-    "flowkit.integrate.kernel._advance_lines": ("the tracing kernel", 10),
+    "flowkit.integrate.kernel._advance_lines": ("the tracing kernel", 9),
     "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 18),
     "flowkit.integrate.pathlines._lines": ("the pathline kernel", 4),
-    "flowkit.integrate.rosenbrock._lines": ("the Rosenbrock kernel", 4),
+    "flowkit.integrate.rosenbrock._lines": ("the Rosenbrock kernel", 3),
     "flowkit.fields.interp._sample_range": ("the attribute sampler", 1),
     "flowkit.seeding.even._pick": ("the evenly spaced seeding's candidate pick", 3),
     "flowkit.seeding.even._walk": ("the evenly spaced seeding's walk", 2),
