@@ -97,6 +97,36 @@ def test_pathlines_distributed_equals_single_process(client, tmp_path):
     _no_parts_left(tmp_path)
 
 
+def test_a_result_lost_with_its_worker_is_computed_again_not_a_failure(client, tmp_path,
+                                                                        monkeypatch):
+    """A worker holds the results of the tasks it ran: killed after one of them finished, it
+    takes that result with it, and the scheduler computes the task again.  The job waits for
+    that (the same lines) instead of failing.  Made certain here: the first finished task's
+    worker is killed before the job looks at that task."""
+    seeds = _seeds(300, 5)
+    ref = _single(tmp_path, 1, seeds, "single.h5")
+    real, seen = distributed.as_completed, []
+
+    def as_completed(futures):
+        for fut in real(futures):
+            if not seen:
+                (holder,) = client.who_has([fut])[fut.key]
+                os.kill(client.run(os.getpid, workers=[holder])[holder], signal.SIGKILL)
+                deadline = time.monotonic() + 30
+                while fut.status == "finished" and time.monotonic() < deadline:
+                    time.sleep(0.002)
+                seen.append(fut.status)
+            yield fut
+
+    monkeypatch.setattr(distributed, "as_completed", as_completed)
+    out = trace_distributed(hotroom_path(), seeds, tmp_path / "dist.h5", OPTS, client=client,
+                            snapshots=[1], chunk_seeds=100)
+    assert seen == ["lost"]
+    _same(ref, read_lines(out[0]))
+    client.wait_for_workers(2, timeout=60)
+    _no_parts_left(tmp_path)
+
+
 def test_killing_a_worker_mid_run_loses_and_duplicates_no_line(client, tmp_path):
     seeds = _seeds(2500, 3)
     ref = _single(tmp_path, 2, seeds, "single.h5")

@@ -136,10 +136,16 @@ def _run(client, tasks, joins, job, retries, position_dtype, progress, n_snap, d
     cpu = 0.0
     try:
         for fut in as_completed(futures):
-            if fut.status != "finished":
-                raise JobError(f"{desc} task {task_of[fut.key].key} failed after {retries} retries: "
-                               f"{fut.exception()!r}; parts done so far are kept, rerun to resume")
-            res = fut.result()
+            # (status "lost": the worker holding the result died after the task finished; the
+            # scheduler computes it again, and result() waits for that)
+            try:
+                if fut.status == "cancelled":
+                    raise RuntimeError("cancelled")
+                res = fut.result()
+            except Exception as e:  # (whatever the task raised, named in the message)
+                raise JobError(f"{desc} task {task_of[fut.key].key} failed after {retries} "
+                               f"retries: {e!r}; parts done so far are kept, rerun to "
+                               f"resume") from e
             cpu += res["cpu_s"]
             snap_left[res["snapshot"]] -= 1
             snaps_done += snap_left[res["snapshot"]] == 0
