@@ -45,7 +45,7 @@ def test_info_on_the_hotroom_series_lists_snapshots(capsys):
     assert rc == 0
     assert "5 snapshot(s)" in out and "[4] t = 2000" in out
     assert "time: 1200" in out and "grid: uniform, shape (41, 21, 41)" in out
-    assert "spacing 0.25" in out and "T: scalar, range [300, 600]" in out
+    assert "spacing 0.25" in out and "T [K]: scalar, range [300, 600]" in out
 
 
 def test_info_errors_are_one_line_naming_the_file(tmp_path, capsys):
@@ -80,7 +80,7 @@ def test_info_on_a_vtu_glob(capsys):
 def test_demo_prints_the_heated_room_and_writes_its_outputs(capsys, tmp_path):
     rc, out, _ = run(capsys, "demo", "--out", str(tmp_path))
     assert rc == 0 and "hotroom.h5[snapshot 4]" in out and "time: 2000" in out
-    assert "U: vector (3)" in out and "p: scalar" in out
+    assert "U [m/s]: vector (3)" in out and "p [m2/s2]: scalar" in out
     written = [line.split(" ", 1)[1] for line in out.splitlines() if line.startswith("wrote ")]
     assert any(w.endswith(".h5") for w in written) and any(w.endswith(".png") for w in written)
     assert all(Path(w).is_file() and Path(w).is_relative_to(tmp_path) for w in written)

@@ -441,6 +441,37 @@ def test_from_xarray_and_netcdf(tmp_path):
         load_field(tmp_path / "h.nc", u="u", v="q", w="w")
 
 
+def test_netcdf_dates_a_series_and_a_single_step_agree_in_seconds(tmp_path):
+    """CF dates become seconds since 1970-01-01, the same in every file: a netCDF file with a
+    time dimension is a series (one snapshot per time, read lazily), a single step cut from it
+    (``isel``: a scalar time coordinate, which xarray writes with itself as the reference date)
+    has the same time, and pathlines through the series step in seconds."""
+    import pandas as pd
+    import xarray as xr
+
+    from flowkit.integrate.pathlines import pathlines
+
+    ds, U, _ = hot_dataset(with_time=False)
+    dates = pd.date_range("2024-03-01 12:00", periods=3, freq="30s")
+    dst = xr.concat([ds * (1 + k) for k in range(3)],
+                    dim=xr.DataArray(dates, dims="time", name="time"))
+    dst.to_netcdf(tmp_path / "t.nc", engine="h5netcdf",
+                  encoding={"time": {"units": "seconds since 2000-01-01"}})
+    dst.isel(time=1).to_netcdf(tmp_path / "one.nc", engine="h5netcdf")
+    noon = (np.datetime64("2024-03-01T12:00") - np.datetime64("1970-01-01")) / np.timedelta64(1, "s")
+    series = load_series(tmp_path / "t.nc")
+    assert [t for t, _ in series] == [noon, noon + 30, noon + 60]
+    assert all(isinstance(r, SnapshotRef) for _, r in series)
+    second = load_field(series[1][1])
+    np.testing.assert_array_equal(second.vector, 2 * U)
+    one = load_field(tmp_path / "one.nc")
+    assert one.time == second.time == noon + 30
+    assert any("1970-01-01" in n for n in one.notes)
+    lines = pathlines(series, [[0.3, 0.4, 0.5]], max_time=45.0, attributes=["time"])
+    t = lines.point_data["time"]
+    assert t[0] == noon and 0 < t[-1] - noon <= 45.0
+
+
 def test_field_module_does_not_import_the_readers():
     """The readers build Fields; field.py and grid.py know nothing of them (no import cycle)."""
     import ast

@@ -32,6 +32,9 @@ def _netcdf(path, speed_units="m/s", length_units="m"):
 def test_field_units_reach_the_lines_file_as_cf_attributes(tmp_path):
     fld = load_field(_netcdf(tmp_path / "f.nc"))
     assert fld.units == {"U": "m/s", "T": "K"} and fld.length_units == "m"
+    summary = fld.summary()  # (flowkit info)
+    assert "U [m/s]: vector" in summary and "T [K]: scalar" in summary and "  q: scalar" in summary
+    assert "lengths in m" in summary
     names = ("time", "arc_length", "speed", "vorticity_magnitude", "distance_to_seed", "T", "q")
     lines = trace(fld, [[0.1, 0.2, 0.25], [0.1, 1.0, 0.25]], attributes=names, max_length=0.5)
     path = write_lines(lines, tmp_path / "lines.h5")

@@ -1,8 +1,8 @@
 """``flowkit info FILE``: what a field file (or series, or lines file) holds.
 
 Grid kind, shape, bounds and spacing, every array with its range and NaN/inf counts, and the
-reader's notes; for a series (.series, a glob, a multi-snapshot flowkit HDF5 file) the list of
-snapshots and times first, then the selected snapshot (default the first).
+reader's notes; for a series (.series, a glob, a multi-snapshot flowkit HDF5 or netCDF file) the
+list of snapshots and times first, then the selected snapshot (default the first).
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ def run(args) -> int:
 
 def describe(file, vector=None, snapshot=None, time=None, data=None) -> str:
     """The text ``flowkit info`` prints."""
-    from ..fields.readers import HDF5_EXT, load_field, load_series, root_format
+    from ..fields.readers import HDF5_EXT, NETCDF_EXT, load_field, load_series, root_format
     from ..fields.readers._common import select_snapshot
 
     path = Path(file)
@@ -62,11 +62,11 @@ def describe(file, vector=None, snapshot=None, time=None, data=None) -> str:
     }
     head = []
     is_glob = any(c in str(file) for c in "*?[") and not path.exists()
-    if is_glob or path.suffix.lower() in (".series", *HDF5_EXT):
+    if is_glob or path.suffix.lower() in (".series", *HDF5_EXT, *NETCDF_EXT):
         series = load_series(file)
         if len(series) > 1 or is_glob or path.suffix.lower() == ".series":
             head.append(f"series: {file}, {len(series)} snapshot(s)")
-            head += [f"  [{i}] t = {t:g}  {_name(ref)}" for i, (t, ref) in enumerate(series)]
+            head += [f"  [{i}] t = {t:.10g}  {_name(ref)}" for i, (t, ref) in enumerate(series)]
             if is_glob:  # a glob is not a file load_field opens: pick the snapshot here
                 times = [t for t, _ in series]
                 i = select_snapshot(file, times, opts.pop("snapshot", None), opts.pop("time", None))

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import re
+import sys
 
 from ..render.camera import VIEWS
 from ..render.style import PLACEMENTS
@@ -107,6 +108,12 @@ def run(args) -> int:
     if args.supersample is not None:
         style = dataclasses.replace(style, supersample=args.supersample)
     ctx = default_context() if args.context == "egl" else create_context(args.context)
+    if args.time:
+        from ..io.lines_h5 import read_metadata
+
+        if "snapshot_time" not in read_metadata(args.lines):
+            print(f"flowkit render: {args.lines}: --time: the lines file holds no snapshot time "
+                  "(its field had none); no time drawn", file=sys.stderr)
     if args.frames is not None:
         return _animate(args, style, size, camera, ctx)
     image = render_file(args.lines, style, size, camera, ctx, strips=args.strips, overlays=True)

@@ -112,11 +112,14 @@ class Field:
     def summary(self) -> str:
         lines = [f"field: {self.source}"]
         if self.time is not None:
-            lines.append(f"time: {self.time:g}")
+            lines.append(f"time: {self.time:.10g}")
         lines.append(self.grid.describe())
+        if self.length_units:
+            lines.append(f"lengths in {self.length_units}")
         lines.append("arrays (point data):")
         for name, a in self.arrays().items():
-            lines.append("  " + _describe_array(name, a, is_vector=a is self.vector))
+            unit = f" [{self.units[name]}]" if self.units.get(name) else ""
+            lines.append("  " + _describe_array(name, a, is_vector=a is self.vector, unit=unit))
         for n in self.notes:
             lines.append(f"note: {n}")
         return "\n".join(lines)
@@ -129,7 +132,7 @@ def _points(points) -> np.ndarray:
     return pts
 
 
-def _describe_array(name: str, a: np.ndarray, is_vector: bool) -> str:
+def _describe_array(name: str, a: np.ndarray, is_vector: bool, unit: str = "") -> str:
     finite = np.isfinite(a)
     n_nan = int(np.isnan(a).sum())
     n_inf = int(np.isinf(a).sum())
@@ -147,4 +150,4 @@ def _describe_array(name: str, a: np.ndarray, is_vector: bool) -> str:
         rng = f"range [{a[finite].min():.6g}, {a[finite].max():.6g}]" if finite.any() else "no finite values"
     bad = f", {n_nan} NaN" if n_nan else ""
     bad += f", {n_inf} inf" if n_inf else ""
-    return f"{name}: {kind}, {rng}{bad}"
+    return f"{name}{unit}: {kind}, {rng}{bad}"

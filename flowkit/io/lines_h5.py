@@ -518,6 +518,14 @@ def lines_attributes(path) -> list[str]:
     return point + line
 
 
+def read_metadata(path) -> dict:
+    """The file's metadata (``Lines.attrs``: method, options, source, snapshot time...); nothing
+    else is read."""
+    path = Path(path)
+    with _open(path) as f:
+        return _get_attrs(f)
+
+
 def read_units(path) -> dict[str, str]:
     """The units the file gives (CF ``units`` attributes): ``"position"`` for x, y, z, and each
     point or line attribute that has them; names without units are left out."""

@@ -29,7 +29,7 @@ from .npz import read_npy, read_npz
 from .series import SnapshotRef, read_glob, read_series_json
 from .vtk_xml import read_vtk_xml
 from .vtu import find_lattice, read_vtu
-from .xarray_io import from_xarray, read_netcdf
+from .xarray_io import from_xarray, netcdf_times, read_netcdf
 
 HDF5_EXT = (".h5", ".hdf5", ".hdf")
 NETCDF_EXT = (".nc", ".nc4", ".netcdf")
@@ -94,8 +94,9 @@ def load_series(path_or_glob) -> list[tuple[float, Path | SnapshotRef]]:
 
     A ``.series`` file gives its files and times; a flowkit HDF5 file gives one SnapshotRef per
     snapshot (its ``time`` attribute, else its position); any other string with ``*``, ``?`` or
-    ``[`` is a glob (times from file names, see ``series.py``); any other single file is a series
-    of one snapshot at its own time (0 when it has none).
+    ``[`` is a glob (times from file names, see ``series.py``); a netCDF file with a time
+    dimension gives one SnapshotRef per time; any other single file is a series of one snapshot
+    at its own time (0 when it has none).
     """
     s = str(path_or_glob)
     if any(ch in s for ch in "*?[") and not Path(s).exists():
@@ -115,5 +116,16 @@ def load_series(path_or_glob) -> list[tuple[float, Path | SnapshotRef]]:
                 ((t, SnapshotRef(path, i)) for i, t in enumerate(times)), key=lambda e: e[0]
             )
         return [(times[0], path)]
+    if ext in NETCDF_EXT:
+        try:
+            times = netcdf_times(path)
+        except (OSError, ValueError) as e:
+            if isinstance(e, ReaderError):
+                raise
+            raise ReaderError(f"{path}: not a readable netCDF file (truncated or corrupt): {e}") \
+                from None
+        if len(times) > 1:
+            return sorted(((t, SnapshotRef(path, i)) for i, t in enumerate(times)),
+                          key=lambda e: e[0])
     f = load_field(path)
     return [(f.time if f.time is not None else 0.0, path)]

@@ -186,4 +186,4 @@ def select_snapshot(where, times: list, snapshot=None, time=None) -> int:
 
 
 def fmt_times(times) -> str:
-    return ", ".join(f"{t:g}" for t in times)
+    return ", ".join(f"{t:.10g}" for t in times)

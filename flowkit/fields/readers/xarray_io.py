@@ -4,8 +4,12 @@ The velocity components ``u``, ``v``, ``w`` are variable names (default: the fir
 (u, v, w), (U, V, W), (U_x, U_y, U_z) the dataset has).  Their three spatial dimensions are
 matched to x, y, z by a coordinate's ``axis`` attribute (X/Y/Z), else by the dimension name
 (x/y/z, lon/lat/lev...), else give ``dims=("xdim", "ydim", "zdim")``.  A fourth dimension named
-time (or with axis T) is selected with ``snapshot=`` (position) or ``time=`` (value).  ``scalars``
-lists scalar variables (default: every other variable on the same dimensions).
+time (or with axis T) is selected with ``snapshot=`` (position) or ``time=`` (value); without
+one, a scalar time coordinate (what ``ds.isel(time=i)`` leaves) gives the field's time.  Times are
+seconds: numbers as they are; dates (CF ``units = "<unit> since <date>"``, which xarray decodes)
+as seconds since 1970-01-01, the same in every file of a series, so that pathlines through
+netCDF snapshots step in seconds.  ``scalars`` lists scalar
+variables (default: every other variable on the same dimensions).
 """
 
 from __future__ import annotations
@@ -40,16 +44,7 @@ def from_xarray(
 ):
     where = source or ds.encoding.get("source") or "<xarray dataset>"
     names = list(ds.data_vars)
-    if u is None and v is None and w is None:
-        for cand in _DEFAULT_UVW:
-            if all(c in ds.data_vars for c in cand):
-                u, v, w = cand
-                break
-        else:
-            raise ReaderError(
-                f"{where}: give the velocity components u=, v=, w=; variables: "
-                f"{', '.join(map(str, names)) or 'none'}"
-            )
+    u, v, w = _component_names(ds, u, v, w, where)
     comps = []
     for role, n in zip("uvw", (u, v, w)):
         if n not in ds.data_vars:
@@ -64,21 +59,15 @@ def from_xarray(
             raise ReaderError(
                 f"{where}: '{c.name}' has dimensions {c.dims}, '{comps[0].name}' has {var_dims}"
             )
-    tdim = [d for d in var_dims if _is_time(ds, d)]
     sel, notes = {}, []
-    if tdim:
-        td = tdim[0]
-        times = (
-            np.asarray(ds[td].values, dtype=float)
-            if td in ds.coords
-            else np.arange(ds.sizes[td], dtype=float)
-        )
+    td, times = _time_axis(ds, var_dims, where, notes)
+    if td is not None:
         i = select_snapshot(where, list(times), snapshot, time)
         sel[td] = i
         notes.append(f"time index {i} of {len(times)} along '{td}'")
         t_value = float(times[i])
     else:
-        t_value = None
+        t_value = _scalar_time(ds, where, notes)
     space = [d for d in var_dims if d not in sel]
     if len(space) != 3:
         raise ReaderError(
@@ -149,8 +138,73 @@ def read_netcdf(path, vector="U", **opts):
         ) from None
 
 
+def netcdf_times(path) -> list[float]:
+    """The times of a netCDF file's snapshots (its velocity's time dimension; one snapshot, at
+    its scalar time or 0, without one), read without loading the data."""
+    import xarray as xr
+
+    with xr.open_dataset(path) as ds:
+        u, _, _ = _component_names(ds, None, None, None, str(path))
+        _, times = _time_axis(ds, ds[u].dims, str(path), [])
+        if times is None:
+            t = _scalar_time(ds, str(path), [])
+            return [0.0 if t is None else t]
+        return [float(t) for t in times]
+
+
+def _component_names(ds, u, v, w, where):
+    if u is None and v is None and w is None:
+        for cand in _DEFAULT_UVW:
+            if all(c in ds.data_vars for c in cand):
+                return cand
+        raise ReaderError(
+            f"{where}: give the velocity components u=, v=, w=; variables: "
+            f"{', '.join(map(str, ds.data_vars)) or 'none'}"
+        )
+    return u, v, w
+
+
 def _is_time(ds, d) -> bool:
     return str(d).lower() in _TIME_NAMES or (d in ds.coords and ds[d].attrs.get("axis") == "T")
+
+
+def _time_axis(ds, var_dims, where, notes):
+    """(name, times in seconds) of the time dimension among ``var_dims``, or (None, None)."""
+    for d in var_dims:
+        if _is_time(ds, d):
+            if d not in ds.coords:
+                return d, np.arange(ds.sizes[d], dtype=float)
+            return d, _seconds(ds[d], where, notes)
+    return None, None
+
+
+def _scalar_time(ds, where, notes) -> float | None:
+    """A scalar time coordinate or variable (named time or t, or with axis T), in seconds."""
+    for n in [*ds.coords, *ds.data_vars]:
+        if ds[n].ndim == 0 and _is_time(ds, n):
+            return float(_seconds(ds[n], where, notes))
+    return None
+
+
+def _seconds(coord, where, notes) -> np.ndarray:
+    """Time values in seconds: numbers as they are, durations in seconds, dates in seconds since
+    the Unix epoch (not since the file's CF reference date: xarray writes a single date with
+    itself as the reference, so each file of a series would start at 0)."""
+    vals = np.asarray(coord.values)
+    if np.issubdtype(vals.dtype, np.timedelta64):
+        return vals / np.timedelta64(1, "s")
+    if np.issubdtype(vals.dtype, np.datetime64):
+        first = np.datetime_as_string(vals.reshape(-1)[0], unit="s") if vals.size else "?"
+        notes.append(f"times are dates, in seconds since 1970-01-01 (the first: {first})")
+        return (vals - np.datetime64("1970-01-01T00:00:00")) / np.timedelta64(1, "s")
+    try:
+        return vals.astype(float)
+    except (TypeError, ValueError):
+        raise ReaderError(
+            f"{where}: time coordinate '{coord.name}' holds {vals.dtype} values (a non-standard "
+            "calendar?); give numbers of seconds, or open the file with xarray "
+            "(decode_times=False) and pass the dataset to from_xarray"
+        ) from None
 
 
 def _match_axes(ds, space, where):
