@@ -156,7 +156,7 @@ def explain(plan: Plan, cache=None) -> str:
     lines = [f"scene: {_where(sc)}",
              f"field: {src.kind} {src.location} (vector {src.vector})",
              f"snapshots: {len(plan.snapshots)} of the series: "
-             + ", ".join(f"{s.index} (t = {s.time:g})" for s in plan.snapshots),
+             + ", ".join(f"{s.index} (t = {s.time:.10g})" for s in plan.snapshots),
              f"seeds: {sc.seeds}" + (f", pruned at distance {sc.prune[0]:g} over "
                                       f"{sc.prune[1]:.0%} of a line" if sc.prune else "")]
     o = plan.options

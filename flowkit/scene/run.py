@@ -87,7 +87,7 @@ def run_scene(scene: Scene | str | Path, *, snapshot=None, out_dir=None, cache_d
         report(f"warning: {notes[-1]}")
     results = []
     for k, snap in enumerate(plan.snapshots):
-        tag = f"[{k + 1}/{len(plan.snapshots)} snapshot {snap.index} t={snap.time:g}]"
+        tag = f"[{k + 1}/{len(plan.snapshots)} snapshot {snap.index} t={snap.time:.10g}]"
         results.append(_run_snapshot(plan, snap, cache, out, ctx, lambda m, t=tag: report(
             f"{t} {m}"), traced.get(snap.index)))
     total = time.perf_counter() - t0
