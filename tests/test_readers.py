@@ -285,6 +285,24 @@ def test_non_monotonic_or_repeated_coordinates(tmp_path, bad, what):
         load_field(tmp_path / "n.npz")
 
 
+def test_decreasing_axes_are_reversed_with_their_data(tmp_path):
+    """Latitudes from north to south, depths downwards: an axis whose nodes all decrease is
+    reversed, the arrays with it (the same field as the increasing file, bit for bit), and a
+    note says so; the vector's components keep their directions."""
+    x, y, z = rect_grid()
+    U, T = linear_arrays((x, y, z))
+    np.savez(tmp_path / "up.npz", x=x, y=y, z=z, U=U, T=T)
+    np.savez(tmp_path / "down.npz", x=x, y=y[::-1], z=z[::-1], U=U[:, ::-1, ::-1],
+             T=T[:, ::-1, ::-1])
+    up, down = load_field(tmp_path / "up.npz"), load_field(tmp_path / "down.npz")
+    for a in "xyz":
+        np.testing.assert_array_equal(getattr(down.grid, a), getattr(up.grid, a))
+    np.testing.assert_array_equal(down.vector, up.vector)
+    np.testing.assert_array_equal(down.scalars["T"], up.scalars["T"])
+    assert any("decreasing along y, z" in n for n in down.notes)
+    assert not any("decreasing" in n for n in up.notes)
+
+
 def test_nan_and_inf_are_allowed_counted_and_reported(tmp_path):
     x, y, z = rect_grid()
     U, T = linear_arrays((x, y, z))

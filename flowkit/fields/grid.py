@@ -19,14 +19,14 @@ def _check_axis(name: str, c, where: str) -> np.ndarray:
         raise GridError(f"{where}: coordinate '{name}' must be 1-D with at least 2 nodes, got shape {c.shape}")
     if not np.all(np.isfinite(c)):
         bad = int(np.flatnonzero(~np.isfinite(c))[0])
-        raise GridError(f"{where}: coordinate '{name}' has a non-finite value {c[bad]!r} at index {bad}")
+        raise GridError(f"{where}: coordinate '{name}' has a non-finite value {float(c[bad])!r} at index {bad}")
     d = np.diff(c)
     if np.any(d <= 0):
         i = int(np.flatnonzero(d <= 0)[0])
         kind = "repeated" if d[i] == 0 else "decreasing"
         raise GridError(
             f"{where}: coordinate '{name}' must be strictly increasing; "
-            f"{kind} at index {i + 1}: {c[i]!r} then {c[i + 1]!r}"
+            f"{kind} at index {i + 1}: {float(c[i])!r} then {float(c[i + 1])!r}"
         )
     return c
 

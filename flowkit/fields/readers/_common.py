@@ -143,8 +143,22 @@ def make_field(
     length_units=None,
 ) -> Field:
     """A Field from 1-D axes and named node arrays indexed [i, j, k] (x first).  ``units``:
-    array name -> units as the file states them (the vector's under its own name)."""
-    grid = grid_from_axes(where, x, y, z, periodic, period)
+    array name -> units as the file states them (the vector's under its own name).  An axis
+    whose nodes decrease (latitudes from north to south, depths downwards) is reversed, the
+    arrays with it, and a note says so."""
+    axes, flipped = [], []
+    for a, c in enumerate((x, y, z)):
+        c = np.asarray(c)
+        if c.ndim == 1 and c.size >= 2 and np.all(np.diff(c) < 0):
+            c = c[::-1]
+            arrays = {n: np.flip(v, axis=a) for n, v in arrays.items()}
+            flipped.append("xyz"[a])
+        axes.append(c)
+    if flipped:
+        note = (f"nodes decreasing along {', '.join(flipped)} in the file: reversed to "
+                "increasing, the data with them")
+        notes = [*notes, note]
+    grid = grid_from_axes(where, *axes, periodic, period)
     vec, scalars, more = vectors_and_scalars(where, grid.shape, arrays, vector)
     notes = [*notes, *dtype_note({vector: vec, **scalars}), *more]
     kept = {vector, *scalars}
