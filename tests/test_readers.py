@@ -450,7 +450,7 @@ def test_from_xarray_and_netcdf(tmp_path):
     dst, _, _ = hot_dataset(with_time=True)
     dst.to_netcdf(tmp_path / "h.nc", engine="h5netcdf")
     g = load_field(tmp_path / "h.nc", time=20.0)
-    assert g.time == 20.0
+    assert g.time == 20.0 and g.time_origin is None  # numbers: seconds, no date
     np.testing.assert_array_equal(g.vector, 2 * U)
     np.testing.assert_array_equal(g.scalars["T"], 2 * T)
     with pytest.raises(
@@ -484,10 +484,24 @@ def test_netcdf_dates_a_series_and_a_single_step_agree_in_seconds(tmp_path):
     np.testing.assert_array_equal(second.vector, 2 * U)
     one = load_field(tmp_path / "one.nc")
     assert one.time == second.time == noon + 30
+    assert one.time_origin == second.time_origin == "1970-01-01T00:00:00"
     assert any("1970-01-01" in n for n in one.notes)
     lines = pathlines(series, [[0.3, 0.4, 0.5]], max_time=45.0, attributes=["time"])
     t = lines.point_data["time"]
     assert t[0] == noon and 0 < t[-1] - noon <= 45.0
+    # the date travels: the lines' metadata, a flowkit HDF5 copy of the field, the picture's label
+    from flowkit import trace
+    from flowkit.fields.writers import save_series
+    from flowkit.render.legend import time_label
+
+    attrs = trace(one, [[0.3, 0.4, 0.5]], max_length=0.2).attrs
+    assert attrs["snapshot_time"] == noon + 30 and attrs["time_origin"] == one.time_origin
+    assert lines.attrs["time_origin"] == one.time_origin
+    save_series([one], tmp_path / "one.h5", single=True)
+    assert load_field(tmp_path / "one.h5").time_origin == one.time_origin
+    assert time_label(noon + 30, one.time_origin) == "t = 2024-03-01 12:00:30"
+    assert time_label(noon + 30.25, one.time_origin) == "t = 2024-03-01 12:00:30.250"
+    assert time_label(2000.0) == "t = 2000 s"
 
 
 def test_field_module_does_not_import_the_readers():

@@ -19,7 +19,8 @@ class Field:
     """``vector`` is (nx, ny, nz, 3) float64; ``scalars`` maps names to (nx, ny, nz) float64.
 
     ``source`` names where the data came from (a file path, an analytic field) so that errors
-    and summaries can say so; ``time`` is the snapshot time when known; ``notes`` records how the
+    and summaries can say so; ``time`` is the snapshot time when known, in seconds (since
+    ``time_origin``, an ISO date, where the file's times are dates); ``notes`` records how the
     data was obtained (e.g. "resampled from an unstructured mesh by linear interpolation").
     ``units`` maps array names (the vector's and the scalars') to the units the file states
     (UDUNITS/CF spelling, e.g. "m/s", "K"); ``length_units`` are the grid coordinates' units.
@@ -35,6 +36,7 @@ class Field:
     notes: list[str] = field(default_factory=list)
     units: dict[str, str] = field(default_factory=dict)
     length_units: str | None = None
+    time_origin: str | None = None
 
     def __post_init__(self):
         shape = self.grid.shape

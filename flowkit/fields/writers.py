@@ -131,6 +131,8 @@ def save_series(
 def _write_snapshot(g, field, dtype, opts):
     if field.time is not None:
         g.attrs["time"] = float(field.time)
+        if field.time_origin:
+            g.attrs["time_origin"] = field.time_origin
     arrays = {f"vectors/{field.vector_name}": field.vector,
               **{f"scalars/{n}": a for n, a in field.scalars.items()}}
     for key, a in arrays.items():

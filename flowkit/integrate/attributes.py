@@ -51,7 +51,7 @@ def units(field: Field, names) -> dict[str, str]:
 def metadata(field: Field, names) -> dict:
     """Lines.attrs entries that carry units and time: ``units`` (JSON of ``units``; the lines
     file writes them as CF ``units`` on each attribute), ``length_units`` (positions) and
-    ``snapshot_time`` (the field's time, when known)."""
+    ``snapshot_time`` (the field's time, when known; ``time_origin`` where times are dates)."""
     import json
 
     out = {}
@@ -62,6 +62,8 @@ def metadata(field: Field, names) -> dict:
         out["length_units"] = field.length_units
     if field.time is not None:
         out["snapshot_time"] = float(field.time)
+    if field.time_origin:
+        out["time_origin"] = field.time_origin
     return out
 
 

@@ -268,11 +268,21 @@ def _place(placement: str, size, panel, coverage, margin: int) -> Box:
 
 
 # -- annotations --------------------------------------------------------------------------------
+def time_label(t: float, origin: str | None = None) -> str:
+    """``t = 2000 s``, or where times are dates (seconds since ``origin``, an ISO date) the date:
+    ``t = 2024-03-01 12:00:30`` (milliseconds where there are any)."""
+    if not origin:
+        return f"t = {t:g} s"
+    date = np.datetime64(origin, "ms") + np.timedelta64(round(t * 1000.0), "ms")
+    iso = str(date).replace("T", " ")
+    return f"t = {iso.removesuffix('.000')}"
+
+
 def annotation_image(size: tuple[int, int], style: Style, *, title: str = "",
-                     time: float | None = None, text: str = "",
+                     time: float | None = None, time_origin: str | None = None, text: str = "",
                      world_per_pixel: float | None = None, length_units: str | None = None,
                      scale: float = 1.0, avoid: Box | None = None) -> tuple[np.ndarray, Box | None]:
-    """Title (top centre), ``t = <time> s`` and free text (bottom, the side away from ``avoid``,
+    """Title (top centre), the time (``time_label``) and free text (bottom, the side away from ``avoid``,
     e.g. the legend's box), and with ``world_per_pixel`` a scale bar of a round length in world
     units labelled with ``length_units``.  Returns (RGBA uint8 (H, W, 4), the box around all of
     them) or an empty image and None when there is nothing to draw."""
@@ -298,7 +308,7 @@ def annotation_image(size: tuple[int, int], style: Style, *, title: str = "",
         tw = d.textlength(title, font=big)
         put(((w - tw) / 2, margin), title, big)
     left = avoid is None or avoid[0] > w / 2  # the legend is on the right: annotate on the left
-    lines = [s for s in (f"t = {time:g} s" if time is not None else "", text) if s]
+    lines = [s for s in (time_label(time, time_origin) if time is not None else "", text) if s]
     y = h - margin
     if world_per_pixel is not None and world_per_pixel > 0 and math.isfinite(world_per_pixel):
         length = round_down(0.2 * w * world_per_pixel)

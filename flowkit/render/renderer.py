@@ -469,7 +469,9 @@ class LineRenderer:
             z = cam.view[2, :3] @ self.bounds.mean(axis=1) + cam.view[2, 3]
             per_px = cam.px_scale[0] * -z + cam.px_scale[1]
         text, _ = annotation_image((w, h), style, title=an.title, text=an.text, scale=scale,
-                                   time=None if t is None else float(t), world_per_pixel=per_px,
+                                   time=None if t is None else float(t),
+                                   time_origin=self.lines.attrs.get("time_origin"),
+                                   world_per_pixel=per_px,
                                    length_units=self.lines.attrs.get("length_units"), avoid=box)
         return composite(image, text)
 

@@ -141,6 +141,7 @@ def make_field(
     period=None,
     units=None,
     length_units=None,
+    time_origin=None,
 ) -> Field:
     """A Field from 1-D axes and named node arrays indexed [i, j, k] (x first).  ``units``:
     array name -> units as the file states them (the vector's under its own name).  An axis
@@ -173,6 +174,7 @@ def make_field(
         notes=notes,
         units=units,
         length_units=str(length_units) if length_units else None,
+        time_origin=time_origin,
     )
 
 

@@ -143,6 +143,7 @@ def _read_flowkit(path, f, vector, snapshot, time, periodic, period):
         arrays,
         vector,
         time=None if t is None else float(np.asarray(t).reshape(())),
+        time_origin=_str(g.attrs["time_origin"]) if "time_origin" in g.attrs else None,
         notes=notes,
         periodic=periodic,
         period=period,

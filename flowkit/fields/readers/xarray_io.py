@@ -24,6 +24,7 @@ _AXIS_NAMES = {
     "z": ("z", "lev", "level", "height", "depth", "zc", "x3"),
 }
 _TIME_NAMES = ("time", "t")
+EPOCH = "1970-01-01T00:00:00"  # dates become seconds since this (Field.time_origin)
 _DEFAULT_UVW = (("u", "v", "w"), ("U", "V", "W"), ("U_x", "U_y", "U_z"))
 
 
@@ -60,14 +61,18 @@ def from_xarray(
                 f"{where}: '{c.name}' has dimensions {c.dims}, '{comps[0].name}' has {var_dims}"
             )
     sel, notes = {}, []
-    td, times = _time_axis(ds, var_dims, where, notes)
+    td, tc = _time_source(ds, var_dims)
+    times = None if tc is None else np.atleast_1d(_seconds(tc, where, notes))
+    t_value = None
     if td is not None:
+        times = np.arange(ds.sizes[td], dtype=float) if times is None else times
         i = select_snapshot(where, list(times), snapshot, time)
         sel[td] = i
         notes.append(f"time index {i} of {len(times)} along '{td}'")
         t_value = float(times[i])
-    else:
-        t_value = _scalar_time(ds, where, notes)
+    elif times is not None:
+        t_value = float(times[0])
+    dates = tc is not None and np.issubdtype(tc.dtype, np.datetime64)
     space = [d for d in var_dims if d not in sel]
     if len(space) != 3:
         raise ReaderError(
@@ -110,6 +115,7 @@ def from_xarray(
         arrays,
         vector_name,
         time=t_value,
+        time_origin=EPOCH if dates else None,
         notes=notes,
         periodic=periodic,
         period=period,
@@ -145,11 +151,10 @@ def netcdf_times(path) -> list[float]:
 
     with xr.open_dataset(path) as ds:
         u, _, _ = _component_names(ds, None, None, None, str(path))
-        _, times = _time_axis(ds, ds[u].dims, str(path), [])
-        if times is None:
-            t = _scalar_time(ds, str(path), [])
-            return [0.0 if t is None else t]
-        return [float(t) for t in times]
+        td, tc = _time_source(ds, ds[u].dims)
+        if tc is not None:
+            return [float(t) for t in np.atleast_1d(_seconds(tc, str(path), []))]
+        return [float(t) for t in range(ds.sizes[td])] if td is not None else [0.0]
 
 
 def _component_names(ds, u, v, w, where):
@@ -168,22 +173,17 @@ def _is_time(ds, d) -> bool:
     return str(d).lower() in _TIME_NAMES or (d in ds.coords and ds[d].attrs.get("axis") == "T")
 
 
-def _time_axis(ds, var_dims, where, notes):
-    """(name, times in seconds) of the time dimension among ``var_dims``, or (None, None)."""
+def _time_source(ds, var_dims):
+    """(time dimension among ``var_dims`` or None, the coordinate holding the time or times or
+    None): the dimension's coordinate, else a scalar time coordinate or variable (named time or
+    t, or with axis T), as ``ds.isel(time=i)`` leaves one."""
     for d in var_dims:
         if _is_time(ds, d):
-            if d not in ds.coords:
-                return d, np.arange(ds.sizes[d], dtype=float)
-            return d, _seconds(ds[d], where, notes)
-    return None, None
-
-
-def _scalar_time(ds, where, notes) -> float | None:
-    """A scalar time coordinate or variable (named time or t, or with axis T), in seconds."""
+            return d, ds[d] if d in ds.coords else None
     for n in [*ds.coords, *ds.data_vars]:
         if ds[n].ndim == 0 and _is_time(ds, n):
-            return float(_seconds(ds[n], where, notes))
-    return None
+            return None, ds[n]
+    return None, None
 
 
 def _seconds(coord, where, notes) -> np.ndarray:
@@ -196,7 +196,7 @@ def _seconds(coord, where, notes) -> np.ndarray:
     if np.issubdtype(vals.dtype, np.datetime64):
         first = np.datetime_as_string(vals.reshape(-1)[0], unit="s") if vals.size else "?"
         notes.append(f"times are dates, in seconds since 1970-01-01 (the first: {first})")
-        return (vals - np.datetime64("1970-01-01T00:00:00")) / np.timedelta64(1, "s")
+        return (vals - np.datetime64(EPOCH)) / np.timedelta64(1, "s")
     try:
         return vals.astype(float)
     except (TypeError, ValueError):
