@@ -5,10 +5,10 @@ The velocity components ``u``, ``v``, ``w`` are variable names (default: the fir
 matched to x, y, z by a coordinate's ``axis`` attribute (X/Y/Z), else by the dimension name
 (x/y/z, lon/lat/lev...), else give ``dims=("xdim", "ydim", "zdim")``.  A fourth dimension named
 time (or with axis T) is selected with ``snapshot=`` (position) or ``time=`` (value); without
-one, a scalar time coordinate (what ``ds.isel(time=i)`` leaves) gives the field's time.  Times are
-seconds: numbers as they are; dates (CF ``units = "<unit> since <date>"``, which xarray decodes)
-as seconds since 1970-01-01, the same in every file of a series, so that pathlines through
-netCDF snapshots step in seconds.  ``scalars`` lists scalar
+one, a scalar time coordinate (what ``ds.isel(time=i)`` leaves) gives the field's time.  Times
+are seconds: numbers as they are; dates (CF ``units = "<unit> since <date>"``, which xarray
+decodes) as seconds since 1970-01-01 (``Field.time_origin``), the same in every file of a
+series, so that pathlines through netCDF snapshots step in seconds.  ``scalars`` lists scalar
 variables (default: every other variable on the same dimensions).
 """
 
