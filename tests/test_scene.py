@@ -224,6 +224,23 @@ def test_changed_field_content_or_option_misses_the_cache(tmp_path, field_file, 
     assert run(path, use_cache=False).snapshots[0].action == "trace" and len(spy["trace"]) == 5
 
 
+def test_changed_line_making_code_misses_the_cache(tmp_path, field_file, spy, monkeypatch):
+    """A checkout between releases keeps flowkit's version but not its lines: the key holds a
+    digest of the readers', integrators' and lines file's source, not of the renderer's."""
+    from flowkit.scene import cache
+
+    path = write_scene(tmp_path, SPEED)
+    assert run(path).snapshots[0].action == "trace"
+    assert run(path).snapshots[0].action == "hit"
+    monkeypatch.setattr(cache, "code_digest", lambda: "an integrator fix")
+    assert run(path).snapshots[0].action == "trace" and len(spy["trace"]) == 2
+    monkeypatch.undo()
+    real = cache.code_digest()
+    assert len(real) == 32 and real == cache.code_digest()
+    for name in cache.LINE_MAKERS:
+        assert (Path(cache.__file__).parent.parent / name).exists(), name
+
+
 def test_a_new_attribute_is_added_on_cached_vertices_or_retraced(tmp_path, field_file, spy):
     path = write_scene(tmp_path, SPEED, outputs='[outputs]\nlines = "l.h5"\n')
     run(path)

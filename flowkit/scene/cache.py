@@ -1,8 +1,9 @@
 """Traced lines cached by the inputs that determine their geometry.
 
 The key hashes the field file's CONTENT (its bytes, in 1 MiB chunks, plus which snapshot of it),
-the vector name, the seeds (the spec, and a seed file's content), the trace options and the
-flowkit version.  The attribute set is not in the key: an entry records which attributes it
+the vector name, the seeds (the spec, and a seed file's content), the trace options, the
+flowkit version and the source of the packages that make lines (``code_digest``: a checkout
+between releases, or a fix, keeps its version but not its lines).  The attribute set is not in the key: an entry records which attributes it
 holds, so asking for another one can be answered without tracing again when the attribute is a
 function of the vertices only (speed, velocity, vorticity*, scalar fields, distance_to_seed: the
 same ``attributes.compute`` the integrator calls, on the very vertices it produced, stored in
@@ -16,6 +17,7 @@ when both are complete.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 from dataclasses import dataclass
@@ -39,6 +41,26 @@ def file_digest(path: str | Path) -> str:
     with open(path, "rb") as f:
         while block := f.read(CHUNK):
             h.update(block)
+    return h.hexdigest()
+
+
+# the packages whose source decides the traced lines and what they carry (readers, integrators,
+# seeding, the lines file): not the renderer, the viewer or the command line
+LINE_MAKERS = ("fields", "integrate", "seeding", "io", "lines.py")
+
+
+@functools.cache
+def code_digest() -> str:
+    """blake2b-128 of flowkit's line-making source files (``LINE_MAKERS``, kernels' templates
+    included), read once per process."""
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.blake2b(digest_size=16)
+    for name in LINE_MAKERS:
+        p = root / name
+        files = [p] if p.is_file() else sorted(f for f in p.rglob("*")
+                                               if f.suffix in (".py", ".j2") and f.is_file())
+        for f in files:
+            h.update(str(f.relative_to(root)).encode() + b"\0" + f.read_bytes())
     return h.hexdigest()
 
 
@@ -79,7 +101,7 @@ class LinesCache:
                 if k not in ("attributes", "progress", "budget")}
         return {"field": {"digest": self._digest(Path(path)), "snapshot_in_file": inner,
                           "vector": plan.scene.field.vector},
-                "seeds": seed_in, "trace": opts, "flowkit": __version__}
+                "seeds": seed_in, "trace": opts, "flowkit": __version__, "code": code_digest()}
 
     @staticmethod
     def key(inputs: dict) -> str:
