@@ -69,6 +69,7 @@ def test_series_one_file_with_snapshot_index_and_per_snapshot(client, tmp_path):
     one = read_lines(trace_distributed(hotroom_path(), seeds, tmp_path / "all.h5", OPTS,
                                        client=client, chunk_seeds=80)[0])
     assert one.attrs["snapshot_times"].tolist() == [400, 800, 1200, 1600, 2000]
+    assert "snapshot_time" not in one.attrs  # (each line's is snapshot_times[snapshot])
     assert one.attrs["source"] == str(hotroom_path())
     snap = one.line_data.pop("snapshot")
     np.testing.assert_array_equal(snap, np.repeat(np.arange(5), 200))

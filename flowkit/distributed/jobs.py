@@ -70,8 +70,10 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
         joins = []
         for i, o in enumerate(outputs):
             mine = [t for t in tasks if t.snapshot == i] if len(outputs) > 1 else tasks
+            # (several snapshots in one file: the first part's snapshot_time is not the file's)
             extra = {"source": _label(source, series), "snapshot_times": np.asarray(times),
-                     "snapshot_sources": [str(r) for _, r in series]} if multi else {}
+                     "snapshot_sources": [str(r) for _, r in series],
+                     "snapshot_time": None} if multi else {}
             if multi and per_snapshot:
                 extra = {"snapshot_time": float(times[i]), "snapshot_index": i}
             joins.append((o, mine, extra, [t.snapshot for t in mine] if multi and not per_snapshot

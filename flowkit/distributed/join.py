@@ -21,7 +21,8 @@ def join_parts(parts, out, *, snapshots=None, attrs=None, position_dtype="float3
                remove=True) -> str:
     """Append the parts (paths, in order) to ``out``.  ``snapshots``: one snapshot index per part,
     stored as the line attribute ``snapshot`` (int32); ``attrs`` are added to the root metadata
-    (e.g. ``snapshot_times``).  Returns the output path (a str, cheap to send back)."""
+    (e.g. ``snapshot_times``; a None value removes the parts' key).  Returns the output path (a
+    str, cheap to send back)."""
     parts = [Path(p) for p in parts]
     missing = [str(p) for p in parts if not p.exists()]
     if missing:
@@ -36,8 +37,8 @@ def join_parts(parts, out, *, snapshots=None, attrs=None, position_dtype="float3
             if snapshots is not None:
                 lines.line_data["snapshot"] = np.full(len(lines), snapshots[i], np.int32)
             if writer is None:
-                writer = LinesWriter.like(lines, out, attrs={**lines.attrs, **(attrs or {})},
-                                          position_dtype=position_dtype)
+                meta = {k: v for k, v in {**lines.attrs, **(attrs or {})}.items() if v is not None}
+                writer = LinesWriter.like(lines, out, attrs=meta, position_dtype=position_dtype)
             batch.append(lines)
             if sum(b.n_points for b in batch) >= BATCH_POINTS or i == len(parts) - 1:
                 writer.append(Lines.concatenate(batch) if len(batch) > 1 else batch[0])

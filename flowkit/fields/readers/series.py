@@ -27,6 +27,9 @@ class SnapshotRef(NamedTuple):
     path: Path
     snapshot: int
 
+    def __str__(self) -> str:  # (as the loaded Field's source names it)
+        return f"{self.path}[snapshot {self.snapshot}]"
+
 
 def read_series_json(path) -> list[tuple[float, Path]]:
     path = Path(path)
