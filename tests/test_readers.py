@@ -502,6 +502,7 @@ def test_netcdf_dates_a_series_and_a_single_step_agree_in_seconds(tmp_path):
     assert time_label(noon + 30, one.time_origin) == "t = 2024-03-01 12:00:30"
     assert time_label(noon + 30.25, one.time_origin) == "t = 2024-03-01 12:00:30.250"
     assert time_label(2000.0) == "t = 2000 s"
+    assert "s since 1970-01-01T00:00:00 = 2024-03-01 12:00:30" in one.summary()  # flowkit info
 
 
 def test_field_module_does_not_import_the_readers():

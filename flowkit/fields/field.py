@@ -114,7 +114,9 @@ class Field:
     def summary(self) -> str:
         lines = [f"field: {self.source}"]
         if self.time is not None:
-            lines.append(f"time: {self.time:.10g}")
+            date = (f" s since {self.time_origin} = {date_of(self.time, self.time_origin)}"
+                    if self.time_origin else "")
+            lines.append(f"time: {self.time:.10g}{date}")
         lines.append(self.grid.describe())
         if self.length_units:
             lines.append(f"lengths in {self.length_units}")
@@ -125,6 +127,13 @@ class Field:
         for n in self.notes:
             lines.append(f"note: {n}")
         return "\n".join(lines)
+
+
+def date_of(seconds: float, origin: str) -> str:
+    """The date ``seconds`` after ``origin`` (an ISO date, ``Field.time_origin``), to the
+    millisecond where there are any: ``2024-03-01 12:00:30``."""
+    stamp = np.datetime64(origin, "ms") + np.timedelta64(round(seconds * 1000.0), "ms")
+    return str(stamp).replace("T", " ").removesuffix(".000")
 
 
 def _points(points) -> np.ndarray:

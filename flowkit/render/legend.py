@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from ..fields.field import date_of
 from .colormaps import colormap_lut
 from .style import PLACEMENTS, ColorMap, Style, WidthMap
 
@@ -271,11 +272,7 @@ def _place(placement: str, size, panel, coverage, margin: int) -> Box:
 def time_label(t: float, origin: str | None = None) -> str:
     """``t = 2000 s``, or where times are dates (seconds since ``origin``, an ISO date) the date:
     ``t = 2024-03-01 12:00:30`` (milliseconds where there are any)."""
-    if not origin:
-        return f"t = {t:g} s"
-    date = np.datetime64(origin, "ms") + np.timedelta64(round(t * 1000.0), "ms")
-    iso = str(date).replace("T", " ")
-    return f"t = {iso.removesuffix('.000')}"
+    return f"t = {date_of(t, origin)}" if origin else f"t = {t:g} s"
 
 
 def annotation_image(size: tuple[int, int], style: Style, *, title: str = "",
