@@ -130,7 +130,7 @@ def test_turns_wait_for_the_claimant_and_not_for_a_dead_one(tmp_path, monkeypatc
     alive.clear()  # the other process ended without storing it: compile here, at once
     t = time.monotonic()
     with parallel_compile.turn(kernel._width, key2[2]):
-        assert time.monotonic() - t < 0.25
+        assert time.monotonic() - t < 2.0  # (not WAIT_S: a loaded machine may pause it briefly)
 
 
 OPTIONS_CODE = """
