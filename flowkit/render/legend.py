@@ -279,10 +279,10 @@ def annotation_image(size: tuple[int, int], style: Style, *, title: str = "",
                      time: float | None = None, time_origin: str | None = None, text: str = "",
                      world_per_pixel: float | None = None, length_units: str | None = None,
                      scale: float = 1.0, avoid: Box | None = None) -> tuple[np.ndarray, Box | None]:
-    """Title (top centre), the time (``time_label``) and free text (bottom, the side away from ``avoid``,
-    e.g. the legend's box), and with ``world_per_pixel`` a scale bar of a round length in world
-    units labelled with ``length_units``.  Returns (RGBA uint8 (H, W, 4), the box around all of
-    them) or an empty image and None when there is nothing to draw."""
+    """Title (top centre), the time (``time_label``) and free text (bottom, the side away from
+    ``avoid``, e.g. the legend's box), and with ``world_per_pixel`` a scale bar of a round
+    length in world units labelled with ``length_units``. Returns (RGBA uint8 (H, W, 4), the
+    box around all of them) or an empty image and None when there is nothing to draw."""
     from PIL import Image, ImageDraw
 
     w, h = (int(v) for v in size)

@@ -116,16 +116,11 @@ def load_series(path_or_glob) -> list[tuple[float, Path | SnapshotRef]]:
                 ((t, SnapshotRef(path, i)) for i, t in enumerate(times)), key=lambda e: e[0]
             )
         return [(times[0], path)]
-    if ext in NETCDF_EXT:
-        try:
-            times = netcdf_times(path)
-        except (OSError, ValueError) as e:
-            if isinstance(e, ReaderError):
-                raise
-            raise ReaderError(f"{path}: not a readable netCDF file (truncated or corrupt): {e}") \
-                from None
+    if ext in NETCDF_EXT:  # (the times without loading the data)
+        times = netcdf_times(path)
         if len(times) > 1:
             return sorted(((t, SnapshotRef(path, i)) for i, t in enumerate(times)),
                           key=lambda e: e[0])
+        return [(times[0], path)]
     f = load_field(path)
     return [(f.time if f.time is not None else 0.0, path)]

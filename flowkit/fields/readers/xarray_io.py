@@ -126,6 +126,28 @@ def from_xarray(
 
 def read_netcdf(path, vector="U", **opts):
     path = existing(path)
+    return _with_dataset(path, lambda ds: from_xarray(ds.load(), vector_name=vector,
+                                                      source=str(path), **opts))
+
+
+def netcdf_times(path) -> list[float]:
+    """The times of a netCDF file's snapshots (its velocity's time dimension; one snapshot, at
+    its scalar time or 0, without one), read without loading the data."""
+    path = existing(path)
+
+    def times(ds):
+        u, _, _ = _component_names(ds, None, None, None, str(path))
+        td, tc = _time_source(ds, ds[u].dims)
+        if tc is not None:
+            return [float(t) for t in np.atleast_1d(_seconds(tc, str(path), []))]
+        return [float(t) for t in range(ds.sizes[td])] if td is not None else [0.0]
+
+    return _with_dataset(path, times)
+
+
+def _with_dataset(path, use):
+    """``use(ds)`` on the netCDF file opened lazily with xarray; a missing xarray or an
+    unreadable file is a ReaderError naming the file."""
     try:
         import xarray as xr
     except ImportError:
@@ -135,26 +157,13 @@ def read_netcdf(path, vector="U", **opts):
         ) from None
     try:
         with xr.open_dataset(path) as ds:
-            return from_xarray(ds.load(), vector_name=vector, source=str(path), **opts)
+            return use(ds)
     except (OSError, ValueError) as e:
         if isinstance(e, ReaderError):
             raise
         raise ReaderError(
             f"{path}: not a readable netCDF file (truncated or corrupt): {e}"
         ) from None
-
-
-def netcdf_times(path) -> list[float]:
-    """The times of a netCDF file's snapshots (its velocity's time dimension; one snapshot, at
-    its scalar time or 0, without one), read without loading the data."""
-    import xarray as xr
-
-    with xr.open_dataset(path) as ds:
-        u, _, _ = _component_names(ds, None, None, None, str(path))
-        td, tc = _time_source(ds, ds[u].dims)
-        if tc is not None:
-            return [float(t) for t in np.atleast_1d(_seconds(tc, str(path), []))]
-        return [float(t) for t in range(ds.sizes[td])] if td is not None else [0.0]
 
 
 def _component_names(ds, u, v, w, where):
