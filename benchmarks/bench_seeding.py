@@ -3,12 +3,11 @@
 The heated room (last snapshot), ``dsep`` = 1/30 of the domain diagonal (0.5 m), ``dtest`` =
 dsep / 2, lines both ways, at most 12 m per direction, vertices every dtest / 2, stagnation
 below 1e-4 m/s.  After a warm-up run (numba JIT), the best of ``--repeat`` runs is reported:
-seconds, lines, vertices, the share of the time spent in ``flowkit.trace`` (its calls and the
+seconds, lines, vertices, the share of the time spent tracing (the kernel's passes and the
 vertices they returned, also those later cut or rejected) against placement (hash, cuts,
-candidates), and the
-ratio against tracing the same number of vertices from given seeds: the seeds of the evenly
-spaced lines, traced with the same options (the lines are then not cut, so they hold more
-vertices; that time is scaled to the evenly spaced vertex count).  Goal: <= 2x.
+candidates), and the ratio against tracing the same number of vertices from given seeds: the
+seeds of the evenly spaced lines, traced with the same options (the lines are then not cut, so
+they hold more vertices; that time is scaled to the evenly spaced vertex count).  Goal: <= 2x.
 
     .venv/bin/python benchmarks/bench_seeding.py [--repeat 3] [--fraction 30]
 """
@@ -61,7 +60,7 @@ def main(argv=None) -> int:
     print("| | seconds | lines | vertices |")
     print("|---|---:|---:|---:|")
     print(f"| evenly spaced | {dt:.3f} | {len(lines)} | {lines.n_points:,} |")
-    print(f"| ... of which flowkit.trace ({stats['trace_calls']} calls) | "
+    print(f"| ... of which tracing ({stats['trace_calls']} kernel passes) | "
           f"{stats['trace_seconds']:.3f} ({share:.0%}) | "
           f"{stats['traced']} traced, {stats['rejected']} rejected | "
           f"{stats['trace_vertices']:,} traced |")

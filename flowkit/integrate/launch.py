@@ -1,6 +1,6 @@
 """What a tracing backend is handed for one pass: ``Launch``, one documented object.
 
-``trace`` runs a batch of lines in passes (``trace._Setup.run``); each pass calls the backend
+``trace`` runs a batch of lines in passes (``trace.Setup.run``); each pass calls the backend
 (``lanes.advance`` for numba, ``OpenCLAdvance``, or a user's callable) with a ``Launch``: which
 lines to advance, the method, the options, the field and the lines' state and output buffers.
 The backend advances every line ``active[n]`` until it is done or has written ``B`` vertices

@@ -77,7 +77,7 @@ class Method:
 
     kind = "explicit"
     resamples = True  # dense output: vertices at any spacing or count
-    driver = None  # the kernel's passes (trace._Setup.run)
+    driver = None  # the kernel's passes (trace.Setup.run)
     retrace = None
 
     @classmethod

@@ -16,7 +16,7 @@ component, linearised with its exact gradient (the 4x4 W is block triangular, so
 The driver reuses the numba kernel's pieces (cell location ``_relocate``, the move onto the next
 cell ``_onto_next_cell``/``_through_face``, the cell's exit ``_exit_time``, right-hand side
 ``_fc``, dense evaluation and event roots ``_dense``/``_root``, the reject rule ``_retry``, vertex
-output ``_put``) and its option arrays (``trace._Setup``); it is always cell-aware, and its
+output ``_put``) and its option arrays (``trace.Setup``); it is always cell-aware, and its
 termination follows the kernel's rules and reason codes.  The coefficients are the registry
 entry's (``methods.RosenbrockMethod``): any number of stages, the error exponent from its
 orders.  Its step loop mirrors the kernel's, because the kernel's loop has no hook for
@@ -376,7 +376,7 @@ def _advance(seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kex
 
 def run_tasks(method, setup, seeds, dirs, max_steps):
     """Trace the half-lines (``seeds`` (n, 3), ``dirs`` ±1) by the RosenbrockMethod ``method``
-    with the options of ``setup`` (``trace._Setup``); returns (points, t, s, owner, columns) with vertices grouped by task in
+    with the options of ``setup`` (``trace.Setup``); returns (points, t, s, owner, columns) with vertices grouped by task in
     order, as the explicit kernel's passes do, and per-task line_data columns."""
     n = seeds.shape[0]
     arrays = [np.ascontiguousarray(x, np.float64) for x in

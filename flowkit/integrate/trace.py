@@ -41,7 +41,7 @@ def trace(field: Field, seeds, options: TraceOptions | None = None, *, backend="
     """
     opts = resolve_options(options, kw)
     seeds = _seeds(seeds)
-    setup = _Setup(field, opts, backend)
+    setup = Setup(field, opts, backend)
     try:
         parts = list(_batches(field, seeds, opts, setup))
     finally:
@@ -70,7 +70,7 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
     seeds = _seeds(seeds)
     writer = None
     try:
-        setup = _Setup(field, opts, backend)
+        setup = Setup(field, opts, backend)
         for part in _batches(field, seeds, opts, setup, batch_seeds):
             part.attrs = line_attrs(field, opts, setup.path)
             if writer is None:
@@ -101,7 +101,7 @@ def resolve_options(options, kw) -> TraceOptions:
 
 def line_attrs(field: Field, opts: TraceOptions, path: str | None = None) -> dict:
     """The ``Lines.attrs`` that ``trace`` records: the options, the field's source and box, and
-    the ``path`` the lines took (``_Setup.path``), where known."""
+    the ``path`` the lines took (``Setup.path``), where known."""
     return {**_attributes.metadata(field, opts.attributes),
         **({"kernel_path": path} if path else {}),
         "method": opts.method_name, "rtol": str(opts.rtol), "atol": str(opts.atol),
@@ -168,7 +168,7 @@ def _sampled_speed(field: Field, max_nodes: int) -> float:
     return float(np.median(sp)) if sp.size else 0.0
 
 
-class _Setup:
+class Setup:
     """Kernel arguments derived once per trace from the field and the options."""
 
     def __init__(self, field: Field, opts: TraceOptions, backend="numba"):
@@ -225,39 +225,56 @@ class _Setup:
         io[K.P_STIFF] = -1 if stiff is None else stiff
         self.io = io
 
-    def run(self, seeds, dirs, emit, spacing, phase, budget, on_pass=None):
+    def tasks(self, n, emit):
+        """The int options and the zeroed float and int states of ``n`` new tasks that emit
+        ``emit`` (K.EMIT_STEPS, EMIT_SPACING or EMIT_FINAL)."""
+        io = self.io.copy()
+        io[K.P_EMIT] = emit
+        return io, np.zeros((n, K.NF)), np.zeros((n, K.NI), np.int64)
+
+    def buffers(self, n, budget):
+        """Output buffers of a pass for up to ``n`` tasks of ``budget`` vertices each."""
+        return (np.empty((n, budget, 3)), np.empty((n, budget, 2 + self.n_columns)),
+                np.zeros(n, np.int64))
+
+    def advance_pass(self, active, seeds, dirs, spacing, phase, io, sf, si, out):
+        """One pass: advance the tasks ``active`` until each is done or has filled its row of
+        the ``buffers`` ``out`` (at least active.size rows).  Returns the pass's vertices
+        (points, t, s, owner), grouped by task in the order of ``active``, the backend's
+        attribute columns in that order (None without), and which of ``active`` have more to
+        give (a task left out of the next pass stays where it is)."""
+        out_p, out_par, out_n = (b[:active.size] for b in out)
+        ran = self.advance(Launch(active, seeds, dirs, spacing, phase, *self.arrays, self.fo,
+                                  io, sf, si, out_p, out_par, out_n))
+        self.paths.add(f"numba {ran}" if isinstance(ran, str) else self.backend_name)
+        m = int(out_n.sum())
+        part = np.empty((m, 3)), np.empty(m), np.empty(m), np.empty(m, np.int64)
+        K.pack(active, out_p, out_par, out_n, *part)  # grouped by line
+        cols = None
+        if self.n_columns:  # the backend's attribute columns, in pack's order
+            cols = out_par[:, :, 2:][np.arange(out_p.shape[1])[None, :] < out_n[:, None]]
+        sub = si[active]
+        busy = (sub[:, K.I_STATUS] != K.DONE) | (sub[:, K.I_PEND] != 0) | (sub[:, K.I_FINAL] != 0)
+        return part, cols, busy
+
+    def run(self, seeds, dirs, emit, spacing, phase, budget):
         """Run tasks to completion; returns (points, t, s, owner, si) with vertices grouped by
         task in order along each task's half-line."""
         n = seeds.shape[0]
-        io = self.io.copy()
-        io[K.P_EMIT] = emit
-        sf = np.zeros((n, K.NF))
-        si = np.zeros((n, K.NI), np.int64)
+        io, sf, si = self.tasks(n, emit)
         active = np.arange(n, dtype=np.int64)
         chunks = []  # per pass: (points, t, s, owner)
         B = budget or int(min(MAX_BUDGET, max(16, BUFFER_BYTES // (40 * n))))
         if emit == K.EMIT_FINAL:
             B = 2
-        # one allocation, reused by every pass (later passes have fewer lines)
-        buf_p = np.empty((n, B, 3))
-        buf_par = np.empty((n, B, 2 + self.n_columns))
+        out = self.buffers(n, B)  # one allocation, reused by every pass (later ones have fewer lines)
         extra = []
-        buf_n = np.zeros(n, np.int64)
         while active.size:
-            out_p, out_par, out_n = buf_p[:active.size], buf_par[:active.size], buf_n[:active.size]
-            ran = self.advance(Launch(active, seeds, dirs, spacing, phase, *self.arrays, self.fo,
-                                      io, sf, si, out_p, out_par, out_n))
-            self.paths.add(f"numba {ran}" if isinstance(ran, str) else self.backend_name)
-            m = int(out_n.sum())
-            part = np.empty((m, 3)), np.empty(m), np.empty(m), np.empty(m, np.int64)
-            K.pack(active, out_p, out_par, out_n, *part)  # grouped by line
+            part, cols, busy = self.advance_pass(active, seeds, dirs, spacing, phase, io, sf, si,
+                                                 out)
             chunks.append(part)
-            if self.n_columns:  # the backend's attribute columns, in pack's order
-                extra.append(out_par[:, :, 2:][np.arange(B)[None, :] < out_n[:, None]])
-            sub = si[active]
-            busy = (sub[:, K.I_STATUS] != K.DONE) | (sub[:, K.I_PEND] != 0) | (sub[:, K.I_FINAL] != 0)
-            if on_pass is not None:
-                on_pass(int(active.size - busy.sum()))
+            if cols is not None:
+                extra.append(cols)
             active = active[busy]
         if len(chunks) == 1:  # one pass: already grouped by line, in order
             self._keep_point_data(extra, chunks[0][1], chunks[0][2], None)
@@ -327,7 +344,7 @@ def _batches(field, seeds, opts, setup, batch_seeds=BATCH_SEEDS):
             bar.close()
 
 
-def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> Lines:
+def _trace_batch(field, setup: Setup, seeds, opts: TraceOptions, id0: int) -> Lines:
     n = seeds.shape[0]
     both = opts.direction == "both"
     entry = opts.entry
@@ -371,15 +388,20 @@ def _trace_batch(field, setup: _Setup, seeds, opts: TraceOptions, id0: int) -> L
             spacing[:] = np.where(length > 0, length / (opts.count - 1), 1.0)
 
     pts, t, s, owner, si = setup.run(tseeds, dirs, emit, spacing, phase, opts.budget)
-    cols = {"reason": si[:, K.I_REASON].astype(np.int8),
+    lines = _assemble(field, opts, seeds, id0, pts, t, s, owner, task_columns(si),
+                      setup.point_data)
+    if entry.retrace is not None:
+        lines = _retrace_stiff(field, setup, seeds, opts, lines)
+    return lines
+
+
+def task_columns(si) -> dict:
+    """The line_data columns of tasks from their int state: reason and step counts."""
+    return {"reason": si[:, K.I_REASON].astype(np.int8),
             "n_accepted": si[:, K.I_NACC].astype(np.int32),
             "n_rejected": si[:, K.I_NREJ].astype(np.int32),
             "n_crossing": si[:, K.I_NCROSS].astype(np.int32),
             "stiff": ((si[:, K.I_STIFF] >> 16) & 1).astype(np.int8)}  # stiffness.is_stiff's bit
-    lines = _assemble(field, opts, seeds, id0, pts, t, s, owner, cols, setup.point_data)
-    if entry.retrace is not None:
-        lines = _retrace_stiff(field, setup, seeds, opts, lines)
-    return lines
 
 
 def _retrace_stiff(field, setup, seeds, opts, lines: Lines) -> Lines:

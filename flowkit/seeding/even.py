@@ -13,11 +13,13 @@ valid point of the field ends within about ``1.5 dsep`` of a line unless the flo
 carry one (see docs/seeding.md for the bounds and the tests that check them).
 
 A generation of candidates, mutually ``dsep`` apart, grows together in rounds: each round
-traces every live half-line a chunk of arc length further (one public ``flowkit.trace`` call per
-direction for the whole generation), then walks the new vertices line after line, in the
-generation's order, against every vertex placed so far, this round's included, and hashes the
-ones that pass.  So no vertex is ever kept within ``dtest`` of another line's, and a line cut
-early is traced at most one chunk past its cut.
+advances every live half-line further (for the tracing kernel's methods one pass of the kernel,
+resumed where the last one stopped; growth.py), then walks the new vertices line after line, in
+the generation's order, against every vertex placed so far, this round's included, and hashes
+the ones that pass.  So no vertex is ever kept within ``dtest`` of another line's, and a line
+cut early is traced at most one round past its cut.  A candidate is checked against the lines
+(the hash) before the field is sampled there: most lie near a line, and the lines are only ever
+added to, so a candidate near one is dropped for good.
 
 Distances are found with a spatial hash (cells of size ``dsep``, minimum image on periodic
 axes): a vertex is compared only with the vertices in the cells its ball reaches, so the cost
@@ -28,7 +30,6 @@ random seed.
 from __future__ import annotations
 
 import math
-import time
 import warnings
 
 import numpy as np
@@ -38,19 +39,18 @@ from ..fields import Field
 from ..integrate import attributes as _attributes
 from ..integrate.options import OptionsError, TraceOptions
 from ..integrate.reasons import Reason
-from ..integrate.trace import line_attrs, resolve_options, stagnation_speed, trace
+from ..integrate.trace import line_attrs, resolve_options, stagnation_speed
 from ..jit import inline
 from ..lines import Lines
+from .growth import Restarted, Resumed
 
 DIRECTIONS = 6  # candidate seeds around the tangent of a line
 MAX_BATCH = 1024
 MIN_BATCH = 256
 SELF_GAP = 2.0  # own vertices nearer than this many dsep of arc length never cut a line
 LATTICE = 0.5  # lattice candidates every LATTICE * dsep
-CHUNK = 4.0  # the first round grows each half-line by about this many dsep ...
-GROWTH = 2.0  # ... each later round by this factor more (few calls for the long ones)
+CHUNK = 4.0  # the first round grows each half-line by about this many dsep (growth.py)
 TOO_CLOSE = int(Reason.TOO_CLOSE)
-MAX_LENGTH = int(Reason.MAX_LENGTH)
 
 
 # -- the spatial hash ---------------------------------------------------------------------------
@@ -118,6 +118,37 @@ def _entry(a, p, q, r2, geo):
 
 
 @inline
+def _wrap(i, geo, a):
+    """Cell index i of axis a, wrapped on a periodic axis (integer division only there)."""
+    return i % int(geo[2, a]) if geo[3, a] > 0.0 else i
+
+
+@inline
+def _in_cell(c, geo, head, nxt, pts, owner, sarr, a, p, r2, line, s, gap, entry, best):
+    """``_scan`` over the vertices of cell c: (the smallest entry u so far, 1 if not
+    ``entry`` and one lies within r of p)."""
+    v = head[c]
+    while v >= 0:
+        o = owner[v]
+        if o >= 0 and (o != line or abs(sarr[v] - s) > gap):
+            q = pts[v]
+            d2 = 0.0
+            for ax in range(3):
+                d2 += _diff(p, q, geo, ax) ** 2
+            if not entry:
+                if d2 < r2:
+                    return best, 1
+            else:
+                u = _entry(a, p, q, r2, geo)
+                if u < 0.0 and d2 < r2:  # rounding: the root lies at the end
+                    u = 1.0
+                if u >= 0.0 and (best < 0.0 or u < best):
+                    best = u
+        v = nxt[v]
+    return best, 0
+
+
+@inline
 def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
     """Over the hashed vertices that count (owner >= 0, and for the own ``line`` only those
     more than ``gap`` of arc length from ``s``): without ``entry``, 1 if one lies within ``r``
@@ -128,66 +159,54 @@ def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
     if entry:
         reach += math.sqrt(_diff(p, a, geo, 0) ** 2 + _diff(p, a, geo, 1) ** 2
                            + _diff(p, a, geo, 2) ** 2)
-    n0, n1, n2 = int(geo[2, 0]), int(geo[2, 1]), int(geo[2, 2])
+    n1, n2 = int(geo[2, 1]), int(geo[2, 2])
     i0, ni = _span(p[0], reach, geo, 0)
     j0, nj = _span(p[1], reach, geo, 1)
     k0, nk = _span(p[2], reach, geo, 2)
-    best = -1.0
-    cells = ni * nj * nk if ni > 0 and nj > 0 and nk > 0 else 0
     home = _cell(p, geo)  # the likeliest to hold a hit: scanned first, where one ends the scan
-    for m in range(cells + 1):
-        if m == 0:
-            c = home
-        else:
-            di, rest = divmod(m - 1, nj * nk)
-            dj, dk = divmod(rest, nk)
-            c = (((i0 + di) % n0) * n1 + (j0 + dj) % n1) * n2 + (k0 + dk) % n2
-            if c == home:
-                continue
-        v = head[c]
-        while v >= 0:
-            o = owner[v]
-            if o >= 0 and (o != line or abs(sarr[v] - s) > gap):
-                q = pts[v]
-                d2 = 0.0
-                for ax in range(3):
-                    d2 += _diff(p, q, geo, ax) ** 2
-                if not entry:
-                    if d2 < r2:
+    best, hit = _in_cell(home, geo, head, nxt, pts, owner, sarr, a, p, r2, line, s, gap, entry,
+                         -1.0)
+    if hit:
+        return 1.0
+    for di in range(ni):
+        ci = _wrap(i0 + di, geo, 0) * n1
+        for dj in range(nj):
+            cj = (ci + _wrap(j0 + dj, geo, 1)) * n2
+            for dk in range(nk):
+                c = cj + _wrap(k0 + dk, geo, 2)
+                if c != home:
+                    best, hit = _in_cell(c, geo, head, nxt, pts, owner, sarr, a, p, r2, line,
+                                         s, gap, entry, best)
+                    if hit:
                         return 1.0
-                else:
-                    u = _entry(a, p, q, r2, geo)
-                    if u < 0.0 and d2 < r2:  # rounding: the root lies at the end
-                        u = 1.0
-                    if u >= 0.0 and (best < 0.0 or u < best):
-                        best = u
-            v = nxt[v]
     return best
 
 
 @njit(cache=True)
-def _pick(geo, head, nxt, pts, owner, sarr, cand, at, limit, r, picked, phead, pnxt, pown,
-          ps):
-    """From ``cand[at:]``, in order, the candidates at least ``r`` from every hashed vertex and
-    from each other, into ``picked`` until ``limit``; returns (how many, the next ``at``).
-    ``phead`` (all -1, left so) and ``pnxt`` hash the picks, ``pown`` and ``ps`` are
-    zeros (the types of ``owner`` and ``sarr``: one compiled ``_scan``)."""
+def _pick(geo, head, nxt, pts, owner, sarr, cand, at, limit, r, mutual, picked, phead, pnxt,
+          pown, ps):
+    """From ``cand[at:]``, in order, the candidates at least ``r`` from every hashed vertex
+    and, where ``mutual``, from each other, until ``limit``: their indices into ``picked``;
+    returns (how many, the next ``at``).  ``phead`` (all -1, left so) and ``pnxt`` hash the
+    picks, ``pown`` and ``ps`` are zeros (the types of ``owner`` and ``sarr``: one compiled
+    ``_scan``)."""
     n = 0
     while at < cand.shape[0] and n < limit:
         p = cand[at]
         at += 1
         if _scan(geo, head, nxt, pts, owner, sarr, p, p, r, -1, 0.0, 0.0, False) > 0.0:
             continue
-        if _scan(geo, phead, pnxt, picked, pown, ps, p, p, r, -1, 0.0, 0.0, False) > 0.0:
-            continue
-        # (row by row: numba's array setitem compiles a shape-mismatch message, seconds)
-        picked[n, 0], picked[n, 1], picked[n, 2] = p[0], p[1], p[2]
-        c = _cell(p, geo)
-        pnxt[n] = phead[c]
-        phead[c] = n
+        if mutual:
+            if _scan(geo, phead, pnxt, cand, pown, ps, p, p, r, -1, 0.0, 0.0, False) > 0.0:
+                continue
+            c = _cell(p, geo)
+            pnxt[at - 1] = phead[c]
+            phead[c] = at - 1
+        picked[n] = at - 1
         n += 1
-    for q in range(n):
-        phead[_cell(picked[q], geo)] = -1
+    if mutual:
+        for q in range(n):
+            phead[_cell(cand[picked[q]], geo)] = -1
     return n, at
 
 
@@ -223,7 +242,8 @@ def _walk(geo, head, nxt, pts, owner, sarr, tarr, cnt, tp, ts, tt, task, base, r
                 sv, tv = sa + u * (sv - sa), ta + u * (tv - ta)
                 p = a + u * (p - a)
                 stop = j  # keep the tip, then stop
-            pts[n, 0], pts[n, 1], pts[n, 2] = p[0], p[1], p[2]  # (as in _pick)
+            # (row by row: numba's array setitem compiles a shape-mismatch message, seconds)
+            pts[n, 0], pts[n, 1], pts[n, 2] = p[0], p[1], p[2]
             owner[n], sarr[n], tarr[n] = line, sv, tv
             _insert(geo, head, nxt, pts, n, n + 1)
             out[k, 0] = n
@@ -280,25 +300,6 @@ class _Store:
 
 
 # -- the seeder ---------------------------------------------------------------------------------
-def _tasks(tr: Lines, lines, shift, first, both):
-    """The ``_walk`` tasks of a trace call's lines (vertex indices from ``shift``) and their
-    reasons, in half order: a first round's lines start at their seeds (direction both: the
-    backward half walks from the seed down to the first vertex, the forward one on from the
-    seed); a continuation starts after its first vertex, the half's last."""
-    off = tr.offsets
-    a, b = off[:-1] + shift, off[1:] + shift
-    one = np.ones_like(a)
-    if first and both:  # backward vertices (s < 0), the seed, forward vertices
-        sd = a + np.bincount(tr.line_index()[tr.point_data["arc_length"] < 0], minlength=len(a))
-        task = np.stack([np.stack([lines, sd, a - 1, -one, -one], 1),
-                         np.stack([lines, sd + 1, b, one, sd], 1)], 1).reshape(-1, 5)
-        return task, np.stack([tr.line_data["reason_backward"], tr.line_data["reason"]],
-                              1).reshape(-1)
-    if first:
-        return np.stack([lines, a, b, one, -one], 1), tr.line_data["reason"]
-    return np.stack([lines, a + 1, b, one, a], 1), tr.line_data["reason"]
-
-
 def _warn_narrow(field: Field, bounds, dsep: float) -> None:
     """Warn where dsep is not smaller than the domain (``bounds``, (3, 2)) along an axis: lines
     about dsep apart then leave that axis one line wide (a fraction of the diagonal, ``1/30d``,
@@ -317,8 +318,9 @@ def _warn_narrow(field: Field, bounds, dsep: float) -> None:
 class EvenSeeder:
     """Grows evenly spaced lines through ``field``; ``run()`` returns them as Lines.
     ``chunk``: the arc length of a generation's first round (default 4 dsep; later rounds
-    double it).  ``stats`` then holds the candidates traced and rejected, the trace calls, the vertices they
-    returned and the seconds spent in them."""
+    double it).  ``stats`` then holds the candidates traced and rejected, and the rounds of
+    tracing (``trace_calls``: kernel passes, or trace calls), the vertices they returned and the
+    seconds spent in them."""
 
     def __init__(self, field: Field, dsep: float, dtest: float | None = None,
                  options: TraceOptions | None = None, *, seed: int = 0, backend="numba",
@@ -342,30 +344,25 @@ class EvenSeeder:
         # line_data column of the lines a StiffSwitch traced again (ros34pw2), if any
         retrace = opts.entry.retrace
         self.retraced = None if retrace is None else retrace.name
-        self.paths = set()  # the trace calls' kernel paths
         self.seed, self.backend, self.max_lines = int(seed), backend, max_lines
         g = field.grid
         self.bounds, self.period = g.bounds, np.array(g.period, np.float64)
         _warn_narrow(field, self.bounds, self.dsep)
         _attributes.check(field, opts.attributes)
-        self.chunk = self._chunk(chunk or CHUNK * self.dsep)
         self.stag = stagnation_speed(field, opts)
         self.signs = {"forward": (1,), "backward": (-1,), "both": (-1, 1)}[opts.direction]
         self.store = _Store(self.bounds, self.period, self.dsep)
         self.lines: dict[str, list] = {}  # per generation, arrays of line data
         self.stats = {"traced": 0, "rejected": 0, "trace_calls": 0, "trace_vertices": 0,
                       "trace_seconds": 0.0}
-
-    def _chunk(self, chunk):
-        """The arc length of the first round: a whole number of vertex spacings (so vertices
-        stay regular across rounds, which double it); one round with max_time (time and length
-        rounds cannot both add up)."""
-        opts = self.opts
-        if math.isfinite(opts.max_time):
-            return math.inf
-        if opts.spacing is not None:
-            chunk = max(1, round(chunk / opts.spacing)) * opts.spacing
-        return chunk
+        chunk = chunk or CHUNK * self.dsep
+        entry = opts.entry
+        if entry.driver is None and entry.retrace is None:  # the tracing kernel's methods
+            self.source = Resumed(field, opts, backend, self.signs, chunk, self.store,
+                                  self.stats)
+        else:
+            self.source = Restarted(field, opts, backend, self.signs, chunk, self.store,
+                                    self.stats, self.retraced)
 
     # -- candidates -----------------------------------------------------------------------------
     def _usable(self, cand):
@@ -374,12 +371,19 @@ class EvenSeeder:
         return cand[(status == 0) & (np.einsum("ij,ij->i", v, v) > self.stag ** 2)]
 
     def _lattice(self, rng):
+        """The usable lattice points, in an order drawn from ``rng``."""
         lo, hi = self.bounds[:, 0], self.bounds[:, 1]
         n = np.maximum(1, np.ceil((hi - lo) / (LATTICE * self.dsep))).astype(int)
         h = (hi - lo) / n
         axes = [lo[a] + h[a] * (np.arange(n[a]) + 0.5) for a in range(3)]
         pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
         return self._usable(pts[rng.permutation(len(pts))])
+
+    def _fresh(self, cand):
+        """The candidates, in order, that could still become seeds: at least dsep from every
+        line placed so far (lines are only added, so the others never could) and usable (the
+        field is sampled only at these few)."""
+        return self._usable(cand[self._select(cand, 0, len(cand), False)[0]])
 
     def _beside(self, n0):
         """Candidates dsep beside the lines kept from store index ``n0`` on, line after line,
@@ -412,110 +416,59 @@ class EvenSeeder:
         n2 = np.cross(t, n1)
         ang = 2.0 * np.pi * np.arange(DIRECTIONS) / DIRECTIONS
         ring = np.cos(ang)[None, :, None] * n1[:, None] + np.sin(ang)[None, :, None] * n2[:, None]
-        return self._usable((p[at][:, None] + self.dsep * ring).reshape(-1, 3))
+        return self._fresh((p[at][:, None] + self.dsep * ring).reshape(-1, 3))
 
-    def _pick(self, cand, at, limit):
-        st = self.store
-        picked = np.empty((limit, 3))
-        n, at = _pick(*st.hashed, cand, at, limit, self.dsep, picked, self._phead,
-                      np.empty(limit, np.int64), np.zeros(limit, np.int64), np.zeros(limit))
+    def _select(self, cand, at, limit, mutual):
+        """``_pick``: the indices of the candidates picked from ``cand[at:]``, the next at."""
+        m = len(cand)
+        picked = np.empty(max(0, min(limit, m - at)), np.int64)
+        n, at = _pick(*self.store.hashed, cand, at, limit, self.dsep, mutual, picked,
+                      self._phead, np.empty(m, np.int64), np.zeros(m, np.int64), np.zeros(m))
         return picked[:n], at
 
-    # -- growing --------------------------------------------------------------------------------
-    def _trace(self, starts, direction, length):
-        t0 = time.perf_counter()
-        o = self.opts.replace(direction=direction, max_length=length,
-                              attributes=("time", "arc_length"), progress=False)
-        lines = trace(self.field, starts, o, backend=self.backend)
-        self.stats["trace_seconds"] += time.perf_counter() - t0
-        self.stats["trace_calls"] += 1
-        self.stats["trace_vertices"] += lines.n_points
-        self.paths.update(lines.attrs.get("kernel_path", "").split("; "))
-        return lines
+    def _pick(self, cand, at, limit):
+        """Seeds from ``cand[at:]`` (fresh candidates), mutually dsep apart; the next at."""
+        idx, at = self._select(cand, at, limit, True)
+        return cand[idx], at
 
+    # -- growing --------------------------------------------------------------------------------
     def _grow(self, seeds, l0):
         """Grow the lines ``l0, l0 + 1, ...`` from ``seeds`` round by round into the store;
-        returns their line data (``dead``: rejected)."""
-        st, opts, signs = self.store, self.opts, self.signs
-        nl, ns = len(seeds), len(signs)
+        returns their line data (``dead``: rejected) and the store index they start at."""
+        st, src = self.store, self.source
+        nl, ns = len(seeds), len(self.signs)
         nh = nl * ns  # half j of line l is h = l * ns + j, direction signs[j]
-        sign = np.tile(np.array(signs), nl)
         line = l0 + np.arange(nh) // ns
         dead = np.zeros(nl, np.int8)
         reason = np.zeros(nh, np.int8)
         alive = np.ones(nh, bool)
         last = np.full(nh, -1, np.int64)  # store index of each half's last vertex
-        steps = np.zeros(nh, np.int64)
-        ld = {k: np.zeros(nl, np.int64) for k in ("n_accepted", "n_rejected", "n_crossing")}
-        flags = {k: np.zeros(nl, np.int8) for k in ("stiff", self.retraced) if k is not None}
-        n0, grown, first, chunk = st.n, 0.0, True, self.chunk
-        gap = SELF_GAP * self.dsep
-        total = opts.max_length
+        n0, gap = st.n, SELF_GAP * self.dsep
+        src.start(seeds)
         while True:
             todo = np.flatnonzero(alive & (dead[line - l0] == 0))
             if not len(todo):
                 break
-            length = min(chunk, total - grown)
-            chunk *= GROWTH
-            grown += length
-            more = math.isinf(total) or total - grown > 1e-12 * total
-            calls = ([(opts.direction, todo, seeds)] if first else
-                     [(d, todo[sign[todo] == sg], None) for d, sg in (("backward", -1),
-                                                                      ("forward", 1))])
-            tasks, bases, tp, ts, tt, who, reasons = [], [], [], [], [], [], []
-            shift = 0
-            for direction, hs, starts in calls:
-                if not len(hs):
-                    continue
-                if starts is None:
-                    starts = st.pts[last[hs]]
-                tr = self._trace(starts, direction, length)
-                task, rs = _tasks(tr, line[hs][::ns] if first else line[hs], shift,
-                                  first, ns == 2)
-                tasks.append(task)
-                reasons.append(rs)
-                base = np.zeros((len(hs), 2))
-                if not first:
-                    base[:] = np.stack([st.s[last[hs]], st.t[last[hs]]], 1)
-                bases.append(base)
-                tp.append(tr.points)
-                ts.append(tr.point_data["arc_length"])
-                tt.append(tr.point_data["time"])
-                who.append(hs)
-                shift += tr.n_points
-                steps_k = tr.line_data["n_accepted"] + tr.line_data["n_rejected"]
-                # a call's step counts go to a line's last half (direction both: both halves')
-                steps[hs[ns - 1::ns] if first else hs] += steps_k
-                li = line[hs][::ns] - l0 if first else line[hs] - l0
-                for k, v in ld.items():
-                    if k in tr.line_data:
-                        np.add.at(v, li, tr.line_data[k])
-                for k, v in flags.items():
-                    if k in tr.line_data:
-                        np.maximum.at(v, li, tr.line_data[k])
-            task, hs = np.concatenate(tasks), np.concatenate(who)
-            order = np.argsort(hs, kind="stable")  # walk lines in the generation's order
-            task, hs = np.ascontiguousarray(task[order]), hs[order]
-            base = np.ascontiguousarray(np.concatenate(bases)[order])
-            pts = np.concatenate(tp)
-            st.reserve(len(pts) + len(task))
+            r = src.round(todo, last)
+            hs = r.task[:, 0]
+            task = r.task.copy()
+            task[:, 0] = line[hs]
+            st.reserve(len(r.pts) + len(task))
             out = np.empty((len(task), 2), np.int64)
-            _walk(*st.hashed, st.t, st.cnt, pts, np.concatenate(ts), np.concatenate(tt), task,
-                  base, self.dtest, gap, dead, l0, out)
-            reason[hs] = np.concatenate(reasons)[order]
+            _walk(*st.hashed, st.t, st.cnt, r.pts, r.s, r.t, task, r.base, self.dtest, gap,
+                  dead, l0, out)
+            reason[hs] = r.reason
             reason[hs[out[:, 1] == 1]] = TOO_CLOSE
             moved = out[:, 0] >= 0
             last[hs[moved]] = out[moved, 0]
-            alive[hs] = ((out[:, 1] == 0) & moved & (reason[hs] == MAX_LENGTH) & more
-                         & (steps[hs] < opts.max_steps))
-            first = False
+            alive[hs] = (out[:, 1] == 0) & moved & r.more
         # a line with fewer than two vertices is no line: drop what it left in the store
         own = st.owner[n0:st.n]
         short = np.bincount(own - l0, minlength=nl) < 2
         own[short[own - l0]] = -1
         dead |= short
         out = {"dead": dead.astype(bool), "seed": seeds,
-               "reason": reason[ns - 1::ns], **ld, **flags}
+               "reason": reason[ns - 1::ns], **src.line_data()}
         if ns == 2:
             out["reason_backward"] = reason[0::2]
         return out, n0
@@ -569,7 +522,7 @@ class EvenSeeder:
         pts, t, s = st.pts[keep], st.t[keep], st.s[keep]
         seed_of = np.repeat(seeds, counts, axis=0)
         point_data = _attributes.compute(self.field, opts.attributes, pts, t, s, seed_of)
-        attrs = line_attrs(self.field, opts, "; ".join(sorted(self.paths - {""})))
+        attrs = line_attrs(self.field, opts, "; ".join(sorted(self.source.paths - {""})))
         attrs.update(seeding="even", dsep=self.dsep, dtest=self.dtest, seeding_seed=self.seed,
                      candidates_traced=self.stats["traced"],
                      candidates_rejected=self.stats["rejected"])
