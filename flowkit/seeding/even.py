@@ -40,7 +40,7 @@ from ..integrate import attributes as _attributes
 from ..integrate.options import OptionsError, TraceOptions
 from ..integrate.reasons import Reason
 from ..integrate.trace import line_attrs, resolve_options, stagnation_speed
-from ..jit import inline
+from ..jit import helper, inline
 from ..lines import Lines
 from .growth import Restarted, Resumed
 
@@ -51,6 +51,7 @@ SELF_GAP = 2.0  # own vertices nearer than this many dsep of arc length never cu
 LATTICE = 0.5  # lattice candidates every LATTICE * dsep
 CHUNK = 4.0  # the first round grows each half-line by about this many dsep (growth.py)
 TOO_CLOSE = int(Reason.TOO_CLOSE)
+NONE, NO, YES = np.int64(-1), np.bool_(False), np.bool_(True)  # typed: one compiled _scan
 
 
 # -- the spatial hash ---------------------------------------------------------------------------
@@ -80,15 +81,18 @@ def _insert(geo, head, nxt, pts, n0, n1):
 @inline
 def _span(x, r, geo, a):
     """The first cell and the number of cells along axis a that [x - r, x + r] reaches (a
-    periodic axis wraps: callers take the index modulo the cell count)."""
+    periodic axis wraps: callers take the index modulo the cell count), and where among them
+    x's own cell lies."""
     n = int(geo[2, a])
     d = x - geo[0, a]
     if geo[3, a] > 0.0:
         d = d % geo[3, a]
         c0 = math.floor((d - r) * geo[1, a])
-        return c0, min(math.floor((d + r) * geo[1, a]) - c0 + 1, n)
+        m = min(math.floor((d + r) * geo[1, a]) - c0 + 1, n)
+        return c0, m, (min(math.floor(d * geo[1, a]), n - 1) - c0) % m
     c0 = max(math.floor((d - r) * geo[1, a]), 0)
-    return c0, min(math.floor((d + r) * geo[1, a]), n - 1) - c0 + 1
+    m = min(math.floor((d + r) * geo[1, a]), n - 1) - c0 + 1
+    return c0, m, min(max(math.floor(d * geo[1, a]) - c0, 0), max(m - 1, 0))
 
 
 @inline
@@ -148,7 +152,7 @@ def _in_cell(c, geo, head, nxt, pts, owner, sarr, a, p, r2, line, s, gap, entry,
     return best, 0
 
 
-@inline
+@helper
 def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
     """Over the hashed vertices that count (owner >= 0, and for the own ``line`` only those
     more than ``gap`` of arc length from ``s``): without ``entry``, 1 if one lies within ``r``
@@ -160,25 +164,24 @@ def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
         reach += math.sqrt(_diff(p, a, geo, 0) ** 2 + _diff(p, a, geo, 1) ** 2
                            + _diff(p, a, geo, 2) ** 2)
     n1, n2 = int(geo[2, 1]), int(geo[2, 2])
-    i0, ni = _span(p[0], reach, geo, 0)
-    j0, nj = _span(p[1], reach, geo, 1)
-    k0, nk = _span(p[2], reach, geo, 2)
-    home = _cell(p, geo)  # the likeliest to hold a hit: scanned first, where one ends the scan
-    best, hit = _in_cell(home, geo, head, nxt, pts, owner, sarr, a, p, r2, line, s, gap, entry,
-                         -1.0)
-    if hit:
-        return 1.0
-    for di in range(ni):
+    i0, ni, oi = _span(p[0], reach, geo, 0)
+    j0, nj, oj = _span(p[1], reach, geo, 1)
+    k0, nk, ok = _span(p[2], reach, geo, 2)
+    # p's own cell first (the likeliest to hold a hit, which ends the scan): each axis from
+    # its offset o round to it
+    best = -1.0
+    for a0 in range(ni):
+        di = oi + a0 - ni if oi + a0 >= ni else oi + a0
         ci = _wrap(i0 + di, geo, 0) * n1
-        for dj in range(nj):
+        for a1 in range(nj):
+            dj = oj + a1 - nj if oj + a1 >= nj else oj + a1
             cj = (ci + _wrap(j0 + dj, geo, 1)) * n2
-            for dk in range(nk):
-                c = cj + _wrap(k0 + dk, geo, 2)
-                if c != home:
-                    best, hit = _in_cell(c, geo, head, nxt, pts, owner, sarr, a, p, r2, line,
-                                         s, gap, entry, best)
-                    if hit:
-                        return 1.0
+            for a2 in range(nk):
+                dk = ok + a2 - nk if ok + a2 >= nk else ok + a2
+                best, hit = _in_cell(cj + _wrap(k0 + dk, geo, 2), geo, head, nxt, pts, owner,
+                                     sarr, a, p, r2, line, s, gap, entry, best)
+                if hit:
+                    return 1.0
     return best
 
 
@@ -194,10 +197,10 @@ def _pick(geo, head, nxt, pts, owner, sarr, cand, at, limit, r, mutual, picked, 
     while at < cand.shape[0] and n < limit:
         p = cand[at]
         at += 1
-        if _scan(geo, head, nxt, pts, owner, sarr, p, p, r, -1, 0.0, 0.0, False) > 0.0:
+        if _scan(geo, head, nxt, pts, owner, sarr, p, p, r, NONE, 0.0, 0.0, NO) > 0.0:
             continue
         if mutual:
-            if _scan(geo, phead, pnxt, cand, pown, ps, p, p, r, -1, 0.0, 0.0, False) > 0.0:
+            if _scan(geo, phead, pnxt, cand, pown, ps, p, p, r, NONE, 0.0, 0.0, NO) > 0.0:
                 continue
             c = _cell(p, geo)
             pnxt[at - 1] = phead[c]
@@ -229,12 +232,12 @@ def _walk(geo, head, nxt, pts, owner, sarr, tarr, cnt, tp, ts, tt, task, base, r
         while j != stop:
             p = tp[j]
             sv, tv = ts[j] + base[k, 0], tt[j] + base[k, 1]
-            if _scan(geo, head, nxt, pts, owner, sarr, p, p, r, line, sv, gap, False) > 0.0:
+            if _scan(geo, head, nxt, pts, owner, sarr, p, p, r, line, sv, gap, NO) > 0.0:
                 if pj < 0:
                     dead[line - l0] = 1
                     break
                 a = tp[pj]
-                u = _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, sv, gap, True)
+                u = _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, sv, gap, YES)
                 out[k, 1] = 1
                 if u <= 0.0:
                     break
