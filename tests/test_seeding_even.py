@@ -3,6 +3,7 @@ periodic ABC flow; too_close recorded per direction; deterministic; CLI and scen
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -16,7 +17,7 @@ from flowkit.integrate import seeds
 from flowkit.integrate.options import OptionsError
 from flowkit.integrate.reasons import Reason
 from flowkit.seeding import trace_spec
-from flowkit.seeding.even import evenly_spaced
+from flowkit.seeding.even import EvenSeeder, evenly_spaced
 
 TWO_PI = 2 * np.pi
 
@@ -28,7 +29,7 @@ def _tree(points, period):
     return cKDTree(p, boxsize=period), p
 
 
-def check_bounds(field, lines, dsep, dtest, stagnation, period=None):
+def check_bounds(field, lines, dsep, dtest, stagnation, period=None, valid=0.9):
     """No two vertices of different lines closer than dtest; every point of a 10 000-point
     random sample of valid cells (speed above the stagnation threshold) within 2 dsep of a
     line.  Returns (closest distance between lines, largest sample distance) over dsep."""
@@ -54,7 +55,7 @@ def check_bounds(field, lines, dsep, dtest, stagnation, period=None):
     q = seeds.random_in(field, 10_000, seed=11)
     v, status = field.sample(q)
     ok = (status == 0) & (np.linalg.norm(v, axis=1) > stagnation)
-    assert ok.mean() > 0.9
+    assert ok.mean() > valid
     d, _ = tree.query(np.mod(q[ok], period) if period is not None else q[ok])
     assert d.max() <= 2 * dsep, f"a valid point {d.max() / dsep:.2f} dsep from every line"
     return d.max() / dsep
@@ -87,6 +88,35 @@ def test_abc_periodic_bounds():
     assert len(lines) > 15
     # without the minimum image (a seam between lines), the bounds would fail across the seam
     check_bounds(field, lines, dsep, 0.4 * dsep, 1e-6, period=TWO_PI)
+
+
+def test_holes_and_still_air_get_no_seeds_and_the_rest_is_covered(room, monkeypatch):
+    """A NaN hole through the room and a corner of nearly still air: every point elsewhere is
+    within 2 dsep of a line, and the lattice, sampled only where a pick falls (then all of it
+    still far from the lines, when one is not usable), gives the same lines as a lattice whose
+    unusable points are dropped before any pick."""
+    v = room.vector.copy()
+    nx, ny, nz, _ = v.shape
+    v[nx // 4:nx // 2, :, nz // 4:nz // 2] = np.nan
+    v[3 * nx // 4:, :ny // 3, 3 * nz // 4:] *= 1e-7
+    field = dataclasses.replace(room, vector=v)
+    dsep = 0.8
+
+    def run():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return evenly_spaced(field, dsep, direction="both", max_length=12.0,
+                                 stagnation=1e-4)
+
+    lines = run()
+    assert len(lines) > 100
+    check_bounds(field, lines, dsep, dsep / 2, 1e-4, valid=0.75)
+    lattice = EvenSeeder._lattice
+    monkeypatch.setattr(EvenSeeder, "_lattice",
+                        lambda self, rng: (p := lattice(self, rng))[self._usable(p)])
+    eager = run()
+    assert np.array_equal(lines.offsets, eager.offsets)
+    assert np.array_equal(lines.points, eager.points)
 
 
 def test_too_close_recorded_per_direction_and_cut_exactly(room, room_lines):

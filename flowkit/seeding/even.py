@@ -186,10 +186,11 @@ def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
 
 
 @njit(cache=True)
-def _pick(geo, head, nxt, pts, owner, sarr, cand, at, limit, r, mutual, picked, phead, pnxt,
-          pown, ps):
-    """From ``cand[at:]``, in order, the candidates at least ``r`` from every hashed vertex
-    and, where ``mutual``, from each other, until ``limit``: their indices into ``picked``;
+def _pick(geo, head, nxt, pts, owner, sarr, cand, ok, at, limit, r, mutual, picked, phead,
+          pnxt, pown, ps):
+    """From ``cand[at:]``, in order, the candidates where ``ok`` (not 0) at least ``r`` from
+    every hashed vertex and, where ``mutual``, from each other, until ``limit``: their indices
+    into ``picked``;
     returns (how many, the next ``at``).  ``phead`` (all -1, left so) and ``pnxt`` hash the
     picks, ``pown`` and ``ps`` are zeros (the types of ``owner`` and ``sarr``: one compiled
     ``_scan``)."""
@@ -197,6 +198,8 @@ def _pick(geo, head, nxt, pts, owner, sarr, cand, at, limit, r, mutual, picked, 
     while at < cand.shape[0] and n < limit:
         p = cand[at]
         at += 1
+        if ok[at - 1] == 0:
+            continue
         if _scan(geo, head, nxt, pts, owner, sarr, p, p, r, NONE, 0.0, 0.0, NO) > 0.0:
             continue
         if mutual:
@@ -368,25 +371,40 @@ class EvenSeeder:
                                     self.stats, self.retraced)
 
     # -- candidates -----------------------------------------------------------------------------
-    def _usable(self, cand):
-        """The candidates in valid cells where the flow is faster than the stagnation speed."""
-        v, status = self.field.sample(cand)
-        return cand[(status == 0) & (np.einsum("ij,ij->i", v, v) > self.stag ** 2)]
+    def _usable(self, pts):
+        """Which points lie in valid cells where the flow is faster than the stagnation
+        speed."""
+        v, status = self.field.sample(pts)
+        return (status == 0) & (np.einsum("ij,ij->i", v, v) > self.stag ** 2)
 
     def _lattice(self, rng):
-        """The usable lattice points, in an order drawn from ``rng``."""
+        """The lattice points, in an order drawn from ``rng`` (not sampled: ``_from_lattice``)."""
         lo, hi = self.bounds[:, 0], self.bounds[:, 1]
         n = np.maximum(1, np.ceil((hi - lo) / (LATTICE * self.dsep))).astype(int)
         h = (hi - lo) / n
         axes = [lo[a] + h[a] * (np.arange(n[a]) + 0.5) for a in range(3)]
         pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-        return self._usable(pts[rng.permutation(len(pts))])
+        return pts[rng.permutation(len(pts))]
+
+    def _from_lattice(self, lattice, ok, lat, limit):
+        """``_pick`` from the lattice, sampling the field only at the picks (most lattice
+        points end near a line, and are never sampled).  ``ok``: 0 where a point is known not
+        to be usable.  Where a pick is not usable, every lattice point from ``lat`` on still
+        dsep from the lines is sampled, and the pick made again: the same seeds as a pick
+        among the usable points."""
+        idx, at = self._select(lattice, lat, limit, True, ok)
+        if not self._usable(lattice[idx]).all():
+            far = lat + self._select(lattice[lat:], 0, len(lattice) - lat, False, ok[lat:])[0]
+            ok[far] = self._usable(lattice[far])
+            idx, at = self._select(lattice, lat, limit, True, ok)
+        return lattice[idx], at
 
     def _fresh(self, cand):
         """The candidates, in order, that could still become seeds: at least dsep from every
         line placed so far (lines are only added, so the others never could) and usable (the
         field is sampled only at these few)."""
-        return self._usable(cand[self._select(cand, 0, len(cand), False)[0]])
+        cand = cand[self._select(cand, 0, len(cand), False)[0]]
+        return cand[self._usable(cand)]
 
     def _beside(self, n0):
         """Candidates dsep beside the lines kept from store index ``n0`` on, line after line,
@@ -421,11 +439,13 @@ class EvenSeeder:
         ring = np.cos(ang)[None, :, None] * n1[:, None] + np.sin(ang)[None, :, None] * n2[:, None]
         return self._fresh((p[at][:, None] + self.dsep * ring).reshape(-1, 3))
 
-    def _select(self, cand, at, limit, mutual):
-        """``_pick``: the indices of the candidates picked from ``cand[at:]``, the next at."""
+    def _select(self, cand, at, limit, mutual, ok=None):
+        """``_pick``: the indices of the candidates picked from ``cand[at:]`` (where ``ok``),
+        the next at."""
         m = len(cand)
         picked = np.empty(max(0, min(limit, m - at)), np.int64)
-        n, at = _pick(*self.store.hashed, cand, at, limit, self.dsep, mutual, picked,
+        ok = np.ones(m, np.int8) if ok is None else ok
+        n, at = _pick(*self.store.hashed, cand, ok, at, limit, self.dsep, mutual, picked,
                       self._phead, np.empty(m, np.int64), np.zeros(m, np.int64), np.zeros(m))
         return picked[:n], at
 
@@ -479,6 +499,7 @@ class EvenSeeder:
     def run(self) -> Lines:
         rng = np.random.default_rng(self.seed)
         lattice = self._lattice(rng)
+        ok = np.ones(len(lattice), np.int8)
         self._phead = np.full(self.store.head.shape, -1, np.int64)
         queue, at, lat, nlines, l0 = np.zeros((0, 3)), 0, 0, 0, 0
         while self.max_lines is None or nlines < self.max_lines:
@@ -487,7 +508,7 @@ class EvenSeeder:
                 limit = min(limit, self.max_lines - nlines)
             seeds, at = self._pick(queue, at, limit)
             if not len(seeds):
-                seeds, lat = self._pick(lattice, lat, limit)
+                seeds, lat = self._from_lattice(lattice, ok, lat, limit)
             if not len(seeds):
                 break
             self.stats["traced"] += len(seeds)
