@@ -235,3 +235,12 @@ def test_cli_even_and_prune(tmp_path, capsys):
     assert set(p.attrs["pruned_by"].tolist()) <= set(p.line_data["seed_id"].tolist())
     assert np.all(p.attrs["pruned_covered"] >= 0.7)
     assert "pruned_seed_id" in describe(pr)
+
+
+def test_progress_counts_the_lines_only_when_asked_or_on_a_terminal(room, capsys):
+    lines = evenly_spaced(room, 2.0, direction="both", max_length=6.0, progress=True)
+    err = capsys.readouterr().err
+    assert "evenly spaced" in err and f"{len(lines)}line" in err
+    evenly_spaced(room, 2.0, direction="both", max_length=6.0)  # stderr is not a terminal
+    evenly_spaced(room, 2.0, direction="both", max_length=6.0, progress=False)
+    assert "evenly spaced" not in capsys.readouterr().err

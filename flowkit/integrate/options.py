@@ -47,8 +47,11 @@ class TraceOptions:
     spacing      resample vertices every `spacing` of arc length (dense output)
     count        resample each line to `count` vertices evenly spaced in arc length
     attributes   per-vertex attributes to compute (see flowkit.integrate.attributes)
-    budget       vertices per line kept in one kernel pass (None: from a 128 MiB buffer);
+    budget       vertices per line kept in one kernel pass (None: from a 32 MiB buffer);
                  longer lines continue in later passes, never truncated
+    progress     a progress bar on stderr: True always, False never, None (default) where
+                 stderr is a terminal and the work is long (trace: 20 000 seeds or more;
+                 evenly spaced seeding: a count of the lines once a run passes one second)
     """
 
     method: str = "dopri5"

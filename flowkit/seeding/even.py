@@ -30,6 +30,7 @@ random seed.
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 
 import numpy as np
@@ -49,6 +50,7 @@ MAX_BATCH = 1024
 MIN_BATCH = 256
 SELF_GAP = 2.0  # own vertices nearer than this many dsep of arc length never cut a line
 LATTICE = 0.5  # lattice candidates every LATTICE * dsep
+PROGRESS_DELAY = 1.0  # seconds before a count of the lines appears (progress None)
 CHUNK = 4.0  # the first round grows each half-line by about this many dsep (growth.py)
 TOO_CLOSE = int(Reason.TOO_CLOSE)
 NONE, NO, YES = np.int64(-1), np.bool_(False), np.bool_(True)  # typed: one compiled _scan
@@ -502,25 +504,39 @@ class EvenSeeder:
         ok = np.ones(len(lattice), np.int8)
         self._phead = np.full(self.store.head.shape, -1, np.int64)
         queue, at, lat, nlines, l0 = np.zeros((0, 3)), 0, 0, 0, 0
-        while self.max_lines is None or nlines < self.max_lines:
-            limit = min(MAX_BATCH, max(MIN_BATCH, nlines))
-            if self.max_lines is not None:
-                limit = min(limit, self.max_lines - nlines)
-            seeds, at = self._pick(queue, at, limit)
-            if not len(seeds):
-                seeds, lat = self._from_lattice(lattice, ok, lat, limit)
-            if not len(seeds):
-                break
-            self.stats["traced"] += len(seeds)
-            data, n0 = self._grow(seeds, l0)
-            l0 += len(seeds)
-            for k, v in data.items():
-                self.lines.setdefault(k, []).append(v)
-            self.stats["rejected"] += int(data["dead"].sum())
-            nlines += int((~data["dead"]).sum())
-            queue = np.concatenate([queue[at:], self._beside(n0)])
-            at = 0
+        with self._progress() as bar:
+            while self.max_lines is None or nlines < self.max_lines:
+                limit = min(MAX_BATCH, max(MIN_BATCH, nlines))
+                if self.max_lines is not None:
+                    limit = min(limit, self.max_lines - nlines)
+                seeds, at = self._pick(queue, at, limit)
+                if not len(seeds):
+                    seeds, lat = self._from_lattice(lattice, ok, lat, limit)
+                if not len(seeds):
+                    break
+                self.stats["traced"] += len(seeds)
+                data, n0 = self._grow(seeds, l0)
+                l0 += len(seeds)
+                for k, v in data.items():
+                    self.lines.setdefault(k, []).append(v)
+                self.stats["rejected"] += int(data["dead"].sum())
+                nlines += int((~data["dead"]).sum())
+                bar.update(nlines - bar.n)
+                bar.set_postfix_str(f"{self.store.n:,} vertices", refresh=False)
+                queue = np.concatenate([queue[at:], self._beside(n0)])
+                at = 0
         return self._lines()
+
+    def _progress(self):
+        """A running count of the lines placed, on stderr: with option progress None (the
+        default) where stderr is a terminal and the run takes more than PROGRESS_DELAY seconds,
+        with True at once, with False never (how many lines there will be is not known)."""
+        from tqdm import tqdm
+
+        show = self.opts.progress
+        return tqdm(unit="line", desc="evenly spaced", smoothing=0.1,
+                    disable=not (sys.stderr.isatty() if show is None else show),
+                    delay=PROGRESS_DELAY if show is None else 0.0)
 
     # -- output ---------------------------------------------------------------------------------
     def _lines(self) -> Lines:
