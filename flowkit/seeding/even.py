@@ -54,6 +54,7 @@ PROGRESS_DELAY = 1.0  # seconds before a count of the lines appears (progress No
 CHUNK = 4.0  # the first round grows each half-line by about this many dsep (growth.py)
 TOO_CLOSE = int(Reason.TOO_CLOSE)
 NONE, NO, YES = np.int64(-1), np.bool_(False), np.bool_(True)  # typed: one compiled _scan
+ALL = np.zeros(0, np.int8)  # _pick's ok for candidates that all are
 
 
 # -- the spatial hash ---------------------------------------------------------------------------
@@ -188,33 +189,35 @@ def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
 
 
 @njit(cache=True)
-def _pick(geo, head, nxt, pts, owner, sarr, cand, ok, at, limit, r, mutual, picked, phead,
-          pnxt, pown, ps):
-    """From ``cand[at:]``, in order, the candidates where ``ok`` (not 0) at least ``r`` from
-    every hashed vertex and, where ``mutual``, from each other, until ``limit``: their indices
-    into ``picked``;
-    returns (how many, the next ``at``).  ``phead`` (all -1, left so) and ``pnxt`` hash the
-    picks, ``pown`` and ``ps`` are zeros (the types of ``owner`` and ``sarr``: one compiled
-    ``_scan``)."""
+def _pick(geo, head, nxt, pts, owner, sarr, cand, ok, at, limit, r, mutual, picked, ppts,
+          phead, pnxt, pown, ps):
+    """From ``cand[at:]``, in order, the candidates (where ``ok`` is not 0; an empty ``ok``:
+    all) at least ``r`` from every hashed vertex and, where ``mutual``, from each other, until
+    ``limit``: their indices into ``picked``; returns (how many, the next ``at``).  The picks
+    are hashed in ``ppts``, ``phead`` (all -1, left so) and ``pnxt``, with ``pown`` and ``ps``
+    zeros (the types of ``owner`` and ``sarr``: one compiled ``_scan``), all of ``limit``
+    rows but ``phead``."""
     n = 0
     while at < cand.shape[0] and n < limit:
         p = cand[at]
         at += 1
-        if ok[at - 1] == 0:
+        if ok.shape[0] > 0 and ok[at - 1] == 0:
             continue
         if _scan(geo, head, nxt, pts, owner, sarr, p, p, r, NONE, 0.0, 0.0, NO) > 0.0:
             continue
         if mutual:
-            if _scan(geo, phead, pnxt, cand, pown, ps, p, p, r, NONE, 0.0, 0.0, NO) > 0.0:
+            if _scan(geo, phead, pnxt, ppts, pown, ps, p, p, r, NONE, 0.0, 0.0, NO) > 0.0:
                 continue
+            # (row by row: numba's array setitem compiles a shape-mismatch message, seconds)
+            ppts[n, 0], ppts[n, 1], ppts[n, 2] = p[0], p[1], p[2]
             c = _cell(p, geo)
-            pnxt[at - 1] = phead[c]
-            phead[c] = at - 1
+            pnxt[n] = phead[c]
+            phead[c] = n
         picked[n] = at - 1
         n += 1
     if mutual:
         for q in range(n):
-            phead[_cell(cand[picked[q]], geo)] = -1
+            phead[_cell(ppts[q], geo)] = -1
     return n, at
 
 
@@ -305,6 +308,28 @@ class _Store:
     def hashed(self):
         """What ``_scan`` reads: (geo, head, nxt, pts, owner, s)."""
         return self.geo, self.head, self.nxt, self.pts, self.owner, self.s
+
+
+class _Queue:
+    """The candidates beside the lines, waiting in order: ``pts[at:end]`` of a buffer grown by
+    doubling (appending by concatenation copied the whole queue every generation: gigabytes
+    over a dense run)."""
+
+    def __init__(self):
+        self.pts, self.at, self.end = np.empty((1024, 3)), 0, 0
+
+    @property
+    def waiting(self):
+        return self.pts[:self.end]
+
+    def push(self, pts):
+        live = self.end - self.at
+        if self.end + len(pts) > len(self.pts):
+            new = np.empty((max(len(self.pts), 2 * (live + len(pts))), 3))
+            new[:live] = self.pts[self.at:self.end]
+            self.pts, self.at, self.end = new, 0, live
+        self.pts[self.end:self.end + len(pts)] = pts
+        self.end += len(pts)
 
 
 # -- the seeder ---------------------------------------------------------------------------------
@@ -444,11 +469,11 @@ class EvenSeeder:
     def _select(self, cand, at, limit, mutual, ok=None):
         """``_pick``: the indices of the candidates picked from ``cand[at:]`` (where ``ok``),
         the next at."""
-        m = len(cand)
-        picked = np.empty(max(0, min(limit, m - at)), np.int64)
-        ok = np.ones(m, np.int8) if ok is None else ok
-        n, at = _pick(*self.store.hashed, cand, ok, at, limit, self.dsep, mutual, picked,
-                      self._phead, np.empty(m, np.int64), np.zeros(m, np.int64), np.zeros(m))
+        k = max(0, min(limit, len(cand) - at))
+        picked, rows = np.empty(k, np.int64), k if mutual else 0
+        n, at = _pick(*self.store.hashed, cand, ALL if ok is None else ok, at, limit, self.dsep,
+                      mutual, picked, np.empty((rows, 3)), self._phead, np.empty(rows, np.int64),
+                      np.zeros(rows, np.int64), np.zeros(rows))
         return picked[:n], at
 
     def _pick(self, cand, at, limit):
@@ -503,13 +528,13 @@ class EvenSeeder:
         lattice = self._lattice(rng)
         ok = np.ones(len(lattice), np.int8)
         self._phead = np.full(self.store.head.shape, -1, np.int64)
-        queue, at, lat, nlines, l0 = np.zeros((0, 3)), 0, 0, 0, 0
+        queue, lat, nlines, l0 = _Queue(), 0, 0, 0
         with self._progress() as bar:
             while self.max_lines is None or nlines < self.max_lines:
                 limit = min(MAX_BATCH, max(MIN_BATCH, nlines))
                 if self.max_lines is not None:
                     limit = min(limit, self.max_lines - nlines)
-                seeds, at = self._pick(queue, at, limit)
+                seeds, queue.at = self._pick(queue.waiting, queue.at, limit)
                 if not len(seeds):
                     seeds, lat = self._from_lattice(lattice, ok, lat, limit)
                 if not len(seeds):
@@ -523,8 +548,7 @@ class EvenSeeder:
                 nlines += int((~data["dead"]).sum())
                 bar.update(nlines - bar.n)
                 bar.set_postfix_str(f"{self.store.n:,} vertices", refresh=False)
-                queue = np.concatenate([queue[at:], self._beside(n0)])
-                at = 0
+                queue.push(self._beside(n0))
         return self._lines()
 
     def _progress(self):
