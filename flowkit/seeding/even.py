@@ -310,6 +310,64 @@ class _Store:
         return self.geo, self.head, self.nxt, self.pts, self.owner, self.s
 
 
+class _Lattice:
+    """The lattice candidates, every LATTICE dsep over the domain, offered in an order drawn from
+    the random seed.  The first pick, from an empty store, takes them in that order; a later
+    one first queries every point still waiting, in the lattice's own order, drops for good
+    those near a line (lines are only added), samples the field at the rest, and picks among
+    the usable ones in the drawn order: the same seeds as picking in the drawn order
+    throughout, but a million queries in random order had missed the cache at nearly every
+    one."""
+
+    def __init__(self, seeder, rng):
+        lo, hi = seeder.bounds[:, 0], seeder.bounds[:, 1]
+        n = np.maximum(1, np.ceil((hi - lo) / (LATTICE * seeder.dsep))).astype(int)
+        h = (hi - lo) / n
+        axes = [lo[a] + h[a] * (np.arange(n[a]) + 0.5) for a in range(3)]
+        self.pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+        self.order = rng.permutation(len(self.pts))  # drawn position -> point
+        self.state = np.ones(len(self.pts), np.int8)  # 0 gone, 1 waiting, 2 waiting, usable
+        self.seeder, self.first = seeder, 0  # (first picks) drawn positions below are gone
+
+    def pick(self, limit):
+        """Seeds from the lattice, as ``EvenSeeder._pick`` (none: the lattice is spent)."""
+        sd = self.seeder
+        if sd.store.n == 0:
+            return self._pick_drawn(limit)
+        far = sd._select(self.pts, 0, len(self.pts), False, self.state)[0]
+        waiting = self.state[far]
+        self.state[:] = 0
+        self.state[far] = waiting
+        unknown = far[waiting == 1]
+        self.state[unknown] = np.where(sd._usable(self.pts[unknown]), 2, 0)
+        far = far[self.state[far] == 2]
+        rank = np.empty(len(self.pts), np.int64)  # (only where far: the drawn position)
+        rank[self.order] = np.arange(len(self.order))
+        far = far[np.argsort(rank[far], kind="stable")]
+        idx, at = sd._select(self.pts[far], 0, limit, True)
+        self.state[far[:at]] = 0
+        return self.pts[far[idx]]
+
+    def _pick_drawn(self, limit):
+        """The first pick: in the drawn order, sampling the field at the picks only (picked
+        again where one is not usable)."""
+        sd, rest = self.seeder, self.order[self.first:]
+        m = 8 * limit
+        while True:
+            ids = rest[:m]
+            cand = self.pts[ids]
+            idx, at = sd._select(cand, 0, limit, True, self.state[ids])
+            bad = ~sd._usable(cand[idx])
+            if bad.any():
+                self.state[ids[idx[bad]]] = 0
+            elif len(idx) == limit or m >= len(rest):
+                self.state[ids[:at]] = 0
+                self.first += at
+                return cand[idx]
+            else:
+                m *= 4
+
+
 class _Queue:
     """The candidates beside the lines, waiting in order: ``pts[at:end]`` of a buffer grown by
     doubling (appending by concatenation copied the whole queue every generation: gigabytes
@@ -403,28 +461,6 @@ class EvenSeeder:
         speed."""
         v, status = self.field.sample(pts)
         return (status == 0) & (np.einsum("ij,ij->i", v, v) > self.stag ** 2)
-
-    def _lattice(self, rng):
-        """The lattice points, in an order drawn from ``rng`` (not sampled: ``_from_lattice``)."""
-        lo, hi = self.bounds[:, 0], self.bounds[:, 1]
-        n = np.maximum(1, np.ceil((hi - lo) / (LATTICE * self.dsep))).astype(int)
-        h = (hi - lo) / n
-        axes = [lo[a] + h[a] * (np.arange(n[a]) + 0.5) for a in range(3)]
-        pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-        return pts[rng.permutation(len(pts))]
-
-    def _from_lattice(self, lattice, ok, lat, limit):
-        """``_pick`` from the lattice, sampling the field only at the picks (most lattice
-        points end near a line, and are never sampled).  ``ok``: 0 where a point is known not
-        to be usable.  Where a pick is not usable, every lattice point from ``lat`` on still
-        dsep from the lines is sampled, and the pick made again: the same seeds as a pick
-        among the usable points."""
-        idx, at = self._select(lattice, lat, limit, True, ok)
-        if not self._usable(lattice[idx]).all():
-            far = lat + self._select(lattice[lat:], 0, len(lattice) - lat, False, ok[lat:])[0]
-            ok[far] = self._usable(lattice[far])
-            idx, at = self._select(lattice, lat, limit, True, ok)
-        return lattice[idx], at
 
     def _fresh(self, cand):
         """The candidates, in order, that could still become seeds: at least dsep from every
@@ -524,11 +560,9 @@ class EvenSeeder:
         return out, n0
 
     def run(self) -> Lines:
-        rng = np.random.default_rng(self.seed)
-        lattice = self._lattice(rng)
-        ok = np.ones(len(lattice), np.int8)
+        lattice = _Lattice(self, np.random.default_rng(self.seed))
         self._phead = np.full(self.store.head.shape, -1, np.int64)
-        queue, lat, nlines, l0 = _Queue(), 0, 0, 0
+        queue, nlines, l0 = _Queue(), 0, 0
         with self._progress() as bar:
             while self.max_lines is None or nlines < self.max_lines:
                 limit = min(MAX_BATCH, max(MIN_BATCH, nlines))
@@ -536,7 +570,7 @@ class EvenSeeder:
                     limit = min(limit, self.max_lines - nlines)
                 seeds, queue.at = self._pick(queue.waiting, queue.at, limit)
                 if not len(seeds):
-                    seeds, lat = self._from_lattice(lattice, ok, lat, limit)
+                    seeds = lattice.pick(limit)
                 if not len(seeds):
                     break
                 self.stats["traced"] += len(seeds)
