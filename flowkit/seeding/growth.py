@@ -77,8 +77,8 @@ class Resumed:
         return self.setup.paths
 
     def start(self, seeds):
+        """A new generation: two halves per seed with direction both, else one."""
         ns = len(self.signs)
-        self.n_lines = len(seeds)
         self.seeds = np.repeat(seeds, ns, axis=0)
         self.dirs = np.tile(self.signs, len(seeds))
         n = len(self.dirs)
@@ -89,6 +89,7 @@ class Resumed:
         self.budget, self.first = self.budget0, True
 
     def round(self, todo, last):
+        """Advance the halves ``todo`` one pass; ``last``: each half's last kept store index."""
         t0 = time.perf_counter()
         out = self.setup.buffers(len(todo), self.budget)
         (pts, t, s, _), _, more = self.setup.advance_pass(
@@ -153,6 +154,8 @@ class Restarted:
         return lines
 
     def round(self, todo, last):
+        """Trace the halves ``todo`` a chunk further from their last kept vertices (``last``:
+        store indices), or from their seeds in a generation's first round."""
         st, opts, ns = self.store, self.opts, len(self.signs)
         total = opts.max_length
         length = min(self.chunk, total - self.grown)
