@@ -48,6 +48,8 @@ SCENARIOS = {
                   "import tempfile\nout = tempfile.mkdtemp()\n"
                   "run_scene(scene_path(), out_dir=out, cache_dir=out + '/cache')",
     "opencl_pocl": "flowkit.trace(field, s, max_length=20, backend='opencl')",
+    "even": "from flowkit.seeding import trace_spec\n"
+            "trace_spec(field, 'even:1/30d', max_length=12.0, direction='both')",
 }
 
 

@@ -25,7 +25,7 @@ TYPICAL = {
     "flowkit.integrate.rosenbrock._lines": ("the Rosenbrock kernel", 3),
     "flowkit.fields.interp._sample_range": ("the attribute sampler", 1),
     "flowkit.seeding.even._pick": ("the evenly spaced seeding's candidate pick", 3),
-    "flowkit.seeding.even._walk": ("the evenly spaced seeding's walk", 2),
+    "flowkit.seeding.even._walk": ("the evenly spaced seeding's walk", 1),
 }
 
 

@@ -36,7 +36,9 @@ OPTION_SETS = {
                  {"method": "rk4", "step": 0.05, "cell_aware": False}),
     "rosenbrock": ("the Rosenbrock method", {"method": "ros34pw2"}),
     "pathlines": ("pathlines", {}),
+    "even": ("evenly spaced seeding (seeds even:...)", {"direction": "both"}),
 }
+EVEN_SPEC = "even:0.25d"  # on the stand-in: a handful of lines, some cut (the walk's two queries)
 
 
 @dataclass
@@ -84,24 +86,28 @@ def _option_set(name: str):
     opts = TraceOptions(max_length=4.0, **OPTION_SETS[name][1])
     if name == "pathlines":
         return lambda: _pathlines(opts)
-    return lambda: _trace(opts)
+    return lambda: _trace(opts, EVEN_SPEC if name == "even" else None)
 
 
 def _scene(path):
+    from .integrate.seeds import parse_even_spec
     from .scene.model import load_scene
     from .scene.plan import make_plan
 
     plan = make_plan(load_scene(path))  # validates the file now, before anything compiles
-    return lambda: _render(plan, _trace(plan.options))
+    even = parse_even_spec(plan.scene.seeds) is not None  # the seeder's kernels too
+    return lambda: _render(plan, _trace(plan.options, EVEN_SPEC if even else None))
 
 
-def _trace(opts):
+def _trace(opts, even=None):
+    """A short trace on the stand-in from SEEDS, or evenly spaced lines by the spec ``even``."""
     from .integrate.attributes import ATTRIBUTES
     from .integrate.trace import trace
+    from .seeding import trace_spec
 
     scalars = [a for a in opts.attributes if a not in ATTRIBUTES]
-    return trace(stand_in(scalars or ("T",)), SEEDS,
-                 opts.replace(max_length=min(opts.max_length, 4.0)))
+    field, opts = stand_in(scalars or ("T",)), opts.replace(max_length=min(opts.max_length, 4.0))
+    return trace(field, SEEDS, opts) if even is None else trace_spec(field, even, opts)
 
 
 def _render(plan, lines) -> None:

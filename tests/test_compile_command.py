@@ -67,3 +67,38 @@ def test_what_to_compile_is_checked_before_anything_compiles(tmp_path):
     with pytest.raises(ValueError, match="scene.toml"):
         warmup.jobs([str(bad)])
     assert [label for label, _ in warmup.jobs(["all"])] == list(warmup.OPTION_SETS)
+
+
+EVEN_RUN = SCENE_RUN.split("import sys")[0] + """
+from flowkit import datasets
+from flowkit.seeding import trace_spec
+trace_spec(datasets.hotroom(), "even:1/30d", max_length=12.0, direction="both")
+print(sorted(set(m for m in compiled if m.startswith("flowkit"))))
+"""
+
+
+def test_compile_even_warms_the_evenly_spaced_seeder(tmp_path):
+    """``flowkit compile even`` compiles the seeder's pick and walk beside the tracing kernel:
+    evenly spaced lines on real data then compile none of flowkit's functions."""
+    cache = tmp_path / "numba"
+    first = _compile(cache, "even")
+    assert re.search(r"^even: compiled \d+ functions", first, re.MULTILINE), first
+    assert list(cache.rglob("even._pick-*.nbi")) and list(cache.rglob("even._walk-*.nbi"))
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=str(ROOT))
+    out = subprocess.run([sys.executable, "-c", EVEN_RUN], env=env, capture_output=True,
+                         text=True, timeout=900, check=True).stdout
+    assert out.strip().splitlines()[-1] == "[]", out
+
+
+def test_a_scene_with_evenly_spaced_seeds_warms_the_seeder(tmp_path, monkeypatch):
+    scene = tmp_path / "even.toml"
+    scene.write_text((ROOT / "examples" / "hotroom_scene.toml").read_text()
+                     .replace('spec = "plane:1,0.6,1:8,0,0:0,0,8:8,8"', 'spec = "even:1/20d"')
+                     .replace('halo = "styles/halo.toml"',
+                              f'halo = "{ROOT / "examples" / "styles" / "halo.toml"}"'))
+    seen = []
+    monkeypatch.setattr(warmup, "_trace", lambda opts, even=None: seen.append(even))
+    monkeypatch.setattr(warmup, "_render", lambda plan, lines: None)
+    for _, run in warmup.jobs([str(scene), str(ROOT / "examples" / "hotroom_scene.toml")]):
+        run()
+    assert seen == [warmup.EVEN_SPEC, None]
