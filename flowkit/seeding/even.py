@@ -53,7 +53,10 @@ LATTICE = 0.5  # lattice candidates every LATTICE * dsep
 PROGRESS_DELAY = 1.0  # seconds before a count of the lines appears (progress None)
 CHUNK = 4.0  # the first round grows each half-line by about this many dsep (growth.py)
 TOO_CLOSE = int(Reason.TOO_CLOSE)
-NONE, NO, YES = np.int64(-1), np.bool_(False), np.bool_(True)  # typed: one compiled _scan
+# typed constants: a literal 0, 1, 2 or False argument compiles one more copy of a helper per
+# value (numba types it as that literal), about a second over the hash's helpers
+NONE, NO, YES = np.int64(-1), np.bool_(False), np.bool_(True)
+X, Y, Z = np.int64(0), np.int64(1), np.int64(2)  # axes
 ALL = np.zeros(0, np.int8)  # _pick's ok for candidates that all are
 
 
@@ -69,8 +72,8 @@ def _axis_cell(x, geo, a):
 
 @inline
 def _cell(p, geo):
-    return ((_axis_cell(p[0], geo, 0) * int(geo[2, 1]) + _axis_cell(p[1], geo, 1))
-            * int(geo[2, 2]) + _axis_cell(p[2], geo, 2))
+    return ((_axis_cell(p[0], geo, X) * int(geo[2, 1]) + _axis_cell(p[1], geo, Y))
+            * int(geo[2, 2]) + _axis_cell(p[2], geo, Z))
 
 
 @njit(cache=True)
@@ -110,7 +113,7 @@ def _diff(p, q, geo, a):
 @inline
 def _entry(a, p, q, r2, geo):
     """The first u in [0, 1] where a + u (p - a) is within sqrt(r2) of q (-1: never)."""
-    e0, e1, e2 = _diff(a, q, geo, 0), _diff(a, q, geo, 1), _diff(a, q, geo, 2)
+    e0, e1, e2 = _diff(a, q, geo, X), _diff(a, q, geo, Y), _diff(a, q, geo, Z)
     f0, f1, f2 = p[0] - a[0], p[1] - a[1], p[2] - a[2]
     cc = e0 * e0 + e1 * e1 + e2 * e2 - r2
     if cc <= 0.0:
@@ -164,24 +167,24 @@ def _scan(geo, head, nxt, pts, owner, sarr, a, p, r, line, s, gap, entry):
     r2 = r * r
     reach = r
     if entry:
-        reach += math.sqrt(_diff(p, a, geo, 0) ** 2 + _diff(p, a, geo, 1) ** 2
-                           + _diff(p, a, geo, 2) ** 2)
+        reach += math.sqrt(_diff(p, a, geo, X) ** 2 + _diff(p, a, geo, Y) ** 2
+                           + _diff(p, a, geo, Z) ** 2)
     n1, n2 = int(geo[2, 1]), int(geo[2, 2])
-    i0, ni, oi = _span(p[0], reach, geo, 0)
-    j0, nj, oj = _span(p[1], reach, geo, 1)
-    k0, nk, ok = _span(p[2], reach, geo, 2)
+    i0, ni, oi = _span(p[0], reach, geo, X)
+    j0, nj, oj = _span(p[1], reach, geo, Y)
+    k0, nk, ok = _span(p[2], reach, geo, Z)
     # p's own cell first (the likeliest to hold a hit, which ends the scan): each axis from
     # its offset o round to it
     best = -1.0
     for a0 in range(ni):
         di = oi + a0 - ni if oi + a0 >= ni else oi + a0
-        ci = _wrap(i0 + di, geo, 0) * n1
+        ci = _wrap(i0 + di, geo, X) * n1
         for a1 in range(nj):
             dj = oj + a1 - nj if oj + a1 >= nj else oj + a1
-            cj = (ci + _wrap(j0 + dj, geo, 1)) * n2
+            cj = (ci + _wrap(j0 + dj, geo, Y)) * n2
             for a2 in range(nk):
                 dk = ok + a2 - nk if ok + a2 >= nk else ok + a2
-                best, hit = _in_cell(cj + _wrap(k0 + dk, geo, 2), geo, head, nxt, pts, owner,
+                best, hit = _in_cell(cj + _wrap(k0 + dk, geo, Z), geo, head, nxt, pts, owner,
                                      sarr, a, p, r2, line, s, gap, entry, best)
                 if hit:
                     return 1.0

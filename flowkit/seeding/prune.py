@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 
 from ..lines import Lines
-from .even import _diff, _span, _Store
+from .even import X, Y, Z, _diff, _span, _Store
 
 
 @njit(cache=True)
@@ -26,9 +26,9 @@ def _nearest_owner(geo, head, nxt, pts, owner, query, r):
     for n in range(query.shape[0]):
         p = query[n]
         best = r * r
-        i0, ni, _ = _span(p[0], r, geo, 0)
-        j0, nj, _ = _span(p[1], r, geo, 1)
-        k0, nk, _ = _span(p[2], r, geo, 2)
+        i0, ni, _ = _span(p[0], r, geo, X)
+        j0, nj, _ = _span(p[1], r, geo, Y)
+        k0, nk, _ = _span(p[2], r, geo, Z)
         for di in range(ni):
             for dj in range(nj):
                 for dk in range(nk):
