@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 import distributed
+import numba
 import numpy as np
 import pytest
 
@@ -192,7 +193,9 @@ def test_failed_task_is_retried_and_reported(tmp_path, monkeypatch):
 def test_task_output_is_idempotent(tmp_path):
     seeds = _seeds(50, 5)
     task = T.Task("s00000-c0000000", str(tmp_path / "part.h5"), SERIES[1][1], 1, 1000, seeds, OPTS)
+    threads = numba.get_num_threads()
     first = T.run_task(task)
+    assert numba.get_num_threads() == threads  # a task in the caller's thread gives them back
     stamp = (tmp_path / "part.h5").stat().st_mtime_ns
     again = T.run_task(task)
     assert not first["cached"] and again["cached"] and again["lines"] == first["lines"] == 50

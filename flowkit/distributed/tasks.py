@@ -77,16 +77,23 @@ def run_task(task: Task) -> dict:
                 "snapshot": task.snapshot, "seconds": time.perf_counter() - t0, "cpu_s": 0.0}
     import numba
 
+    # numba's thread count belongs to the calling thread: set for the task, given back after (a
+    # task run in the caller's own thread left it at one thread for whatever ran next)
+    before = numba.get_num_threads()
     numba.set_num_threads(min(task.numba_threads, numba.config.NUMBA_NUM_THREADS))
-    seeds = task.seeds.load() if isinstance(task.seeds, SeedSlice) else np.asarray(task.seeds)
-    if task.series is not None:
-        from ..integrate.pathlines import pathlines
+    try:
+        seeds = task.seeds.load() if isinstance(task.seeds, SeedSlice) else np.asarray(task.seeds)
+        if task.series is not None:
+            from ..integrate.pathlines import pathlines
 
-        lines = pathlines(list(task.series), seeds, task.release, task.options, vector=task.vector)
-    else:
-        from ..integrate.trace import trace
+            lines = pathlines(list(task.series), seeds, task.release, task.options,
+                              vector=task.vector)
+        else:
+            from ..integrate.trace import trace
 
-        lines = trace(open_field(task.source, task.vector), seeds, task.options)
+            lines = trace(open_field(task.source, task.vector), seeds, task.options)
+    finally:
+        numba.set_num_threads(before)
     lines.line_data["seed_id"] = lines.line_data["seed_id"] + task.first
     t1 = time.perf_counter()
     write_part(lines, part, task.position_dtype)
