@@ -248,3 +248,16 @@ def test_progress_counts_the_lines_only_when_asked_or_on_a_terminal(room, capsys
     evenly_spaced(room, 2.0, direction="both", max_length=6.0)  # stderr is not a terminal
     evenly_spaced(room, 2.0, direction="both", max_length=6.0, progress=False)
     assert "evenly spaced" not in capsys.readouterr().err
+
+
+def test_opencl_grows_the_lines_in_resumed_passes_too(room):
+    """The kernel passes resume on the OpenCL backend (PoCL in CI) as on numba: a pass of 16
+    vertices per half-line, then 32, 64..., each continuing where the last stopped."""
+    pytest.importorskip("pyopencl")
+    dsep = 1.0
+    kw = {"direction": "both", "max_length": 8.0, "stagnation": 1e-4}
+    cl = evenly_spaced(room, dsep, backend="opencl", **kw)
+    nb = evenly_spaced(room, dsep, **kw)
+    assert cl.attrs["kernel_path"] == "opencl"
+    assert abs(len(cl) - len(nb)) <= 0.05 * len(nb)
+    check_bounds(room, cl, dsep, dsep / 2, 1e-4)
