@@ -481,19 +481,23 @@ class EvenSeeder:
         if not len(idx):
             return np.zeros((0, 3))
         idx = idx[np.lexsort((st.s[idx], st.owner[idx]))]
-        p, own = st.pts[idx], st.owner[idx]
+        own = st.owner[idx]
         start = np.flatnonzero(np.r_[True, own[1:] != own[:-1]])
-        end = np.r_[start[1:], len(own)]
-        first = np.repeat(start, end - start)
-        last = np.repeat(end - 1, end - start)
-        i = np.arange(len(own))
+        size = np.diff(np.r_[start, len(own)])
         h = self.opts.spacing  # None for the stiff methods: vertices at their steps
         if h is None:
-            seg = np.linalg.norm(np.diff(p, axis=0), axis=1)[own[1:] == own[:-1]]
+            seg = np.linalg.norm(np.diff(st.pts[idx], axis=0), axis=1)[own[1:] == own[:-1]]
             h = float(seg.mean()) if len(seg) else self.dsep
         every = max(1, round(self.dsep / h)) if h > 0 else 1
-        at = i[((i - first) % every == 0) & (last > first)]
-        t = p[np.minimum(at + 1, last[at])] - p[np.maximum(at - 1, first[at])]
+        # every `every`-th vertex of each line of two vertices or more, from its first (indices
+        # into idx, made per line: arrays as long as the vertices cost more than the rest)
+        start, size = start[size > 1], size[size > 1]
+        count = (size + every - 1) // every
+        line = np.repeat(np.arange(len(start)), count)
+        at = start[line] + every * (np.arange(len(line)) - np.repeat(np.cumsum(count) - count,
+                                                                      count))
+        first, last = start[line], start[line] + size[line] - 1
+        t = st.pts[idx[np.minimum(at + 1, last)]] - st.pts[idx[np.maximum(at - 1, first)]]
         norm = np.linalg.norm(t, axis=1)
         at, t = at[norm > 0], t[norm > 0] / norm[norm > 0, None]
         ref = np.zeros_like(t)
@@ -503,7 +507,7 @@ class EvenSeeder:
         n2 = np.cross(t, n1)
         ang = 2.0 * np.pi * np.arange(DIRECTIONS) / DIRECTIONS
         ring = np.cos(ang)[None, :, None] * n1[:, None] + np.sin(ang)[None, :, None] * n2[:, None]
-        return self._fresh((p[at][:, None] + self.dsep * ring).reshape(-1, 3))
+        return self._fresh((st.pts[idx[at]][:, None] + self.dsep * ring).reshape(-1, 3))
 
     def _select(self, cand, at, limit, mutual, ok=None):
         """``_pick``: the indices of the candidates picked from ``cand[at:]`` (where ``ok``),
