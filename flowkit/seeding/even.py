@@ -198,8 +198,8 @@ def _pick(geo, head, nxt, pts, owner, sarr, cand, ok, at, limit, r, mutual, pick
     all) at least ``r`` from every hashed vertex and, where ``mutual``, from each other, until
     ``limit``: their indices into ``picked``; returns (how many, the next ``at``).  The picks
     are hashed in ``ppts``, ``phead`` (all -1, left so) and ``pnxt``, with ``pown`` and ``ps``
-    zeros (the types of ``owner`` and ``sarr``: one compiled ``_scan``), all of ``limit``
-    rows but ``phead``."""
+    zeros (the types of ``owner`` and ``sarr``: one compiled ``_scan``); all but ``phead``
+    have a row for every pick there can be."""
     n = 0
     while at < cand.shape[0] and n < limit:
         p = cand[at]
@@ -586,8 +586,9 @@ class EvenSeeder:
                 for k, v in data.items():
                     self.lines.setdefault(k, []).append(v)
                 self.stats["rejected"] += int(data["dead"].sum())
-                nlines += int((~data["dead"]).sum())
-                bar.update(nlines - bar.n)
+                placed = int((~data["dead"]).sum())
+                nlines += placed
+                bar.update(placed)
                 bar.set_postfix_str(f"{self.store.n:,} vertices", refresh=False)
                 queue.push(self._beside(n0))
         return self._lines()

@@ -95,7 +95,7 @@ class Resumed:
         (pts, t, s, _), _, more = self.setup.advance_pass(
             todo, self.seeds, self.dirs, self.spacings, self.phases, self.io, self.sf, self.si,
             out)
-        self.budget = min(int(GROWTH * self.budget), MAX_BUDGET)
+        self.budget = min(GROWTH * self.budget, MAX_BUDGET)
         b = np.cumsum(out[2][:len(todo)])
         a = b - out[2][:len(todo)]
         base = np.zeros((len(todo), 2))
@@ -182,10 +182,11 @@ class Restarted:
                                            -np.ones_like(a)], 1),
                                  _rows(hs[1::2], sd, b, True, True, None)], 1).reshape(-1, 5)
                 rs = np.stack([tr.line_data["reason_backward"], tr.line_data["reason"]], 1)
-            else:
-                task = _rows(hs, a, b, self.first, np.zeros(len(hs), bool), a)
-                if not self.first:
-                    task[:, 1] += 1  # the first vertex is the last kept one
+            elif self.first:
+                task = _rows(hs, a, b, True, np.zeros(len(hs), bool), None)
+                rs = tr.line_data["reason"]
+            else:  # the first vertex is the last kept one
+                task = _rows(hs, a + 1, b, False, None, a)
                 rs = tr.line_data["reason"]
             tasks.append(task)
             reasons.append(rs.reshape(-1))
