@@ -30,13 +30,21 @@ def _newest(folder: Path) -> float:
     return max((p.stat().st_mtime for p in folder.glob("*.py")), default=0.0)
 
 
+def _mtime(p: Path) -> float:
+    """A cache file's time; inf when another process (a test worker) removed it meanwhile."""
+    try:
+        return p.stat().st_mtime
+    except FileNotFoundError:
+        return float("inf")
+
+
 def drop_stale(root: Path = PACKAGE) -> list[Path]:
     """Remove the stale numba caches under ``root``; returns the __pycache__ folders cleared."""
     dropped = []
     for cache in root.glob("*/__pycache__"):
         files = [p for p in cache.iterdir() if p.suffix in (".nbi", ".nbc")]
         deps = [cache.parent] + [root / name for name in SHARED]
-        if files and min(p.stat().st_mtime for p in files) < max(map(_newest, deps)):
+        if files and min(map(_mtime, files)) < max(map(_newest, deps)):
             for p in files:
                 p.unlink(missing_ok=True)
             dropped.append(cache)
@@ -67,16 +75,17 @@ def ensure_location() -> str | None:
     return config.CACHE_DIR
 
 
-def in_disk_cache(dispatcher, sig=None) -> bool:
+def in_disk_cache(dispatcher, sig=None, having=None) -> bool:
     """Whether numba's disk cache holds ``dispatcher`` compiled for this CPU and this source,
-    for ``sig`` (argument types) or, without one, for any signature: its index read as numba's
-    ``Cache.load_overload`` reads it; False where that cannot be read."""
+    for ``sig`` (argument types) or, without one, for any signature (with an argument of type
+    ``having``, when given): its index read as numba's ``Cache.load_overload`` reads it; False
+    where that cannot be read."""
     try:
         cache = dispatcher._cache
         key = cache._index_key(sig, dispatcher.targetctx.codegen())
         index = cache._cache_file._load_index()
         if sig is not None:
             return key in index
-        return any(k[1:] == key[1:] for k in index)
+        return any(k[1:] == key[1:] and (having is None or having in k[0]) for k in index)
     except Exception:  # noqa: BLE001 (numba internals: then the caller compiles as usual)
         return False
