@@ -93,11 +93,12 @@ class _Turns:
     types in a folder both share, taken by whichever process comes to it first; the other waits
     for its done file and loads that copy from the disk cache."""
 
-    def __init__(self, folder: str, other_alive):
+    def __init__(self, folder: str, other_alive, dtype: str = "float64"):
         from .helper_sigs import HELPERS
 
         self.folder, self.other_alive, self.mine = folder, other_alive, set()
-        self.table = {(m, n, sig) for entries in HELPERS.values() for m, n, sig in entries}
+        self.table = {(m, n, for_type(sig, dtype))
+                      for entries in HELPERS.values() for m, n, sig in entries}
 
     def _path(self, key) -> str:
         return os.path.join(self.folder, hashlib.sha1(repr(key).encode()).hexdigest()[:20])
@@ -153,13 +154,34 @@ def turn(dispatcher, sig):
             turns.done(key)
 
 
-def start(kernel: str, dispatcher) -> subprocess.Popen | None:
-    """Start compiling ``kernel``'s helpers (a key of ``helper_sigs.HELPERS``) in a second
-    process, once per process, unless that would not help (above); returns the process."""
-    if kernel in _started or not enabled() or dispatcher.overloads:
+def field_array(dtype: str = "float64"):
+    """numba's type of a field's node array (4-D, C-contiguous) of ``dtype``."""
+    import numpy as np
+    from numba.core import types
+    from numba.np.numpy_support import from_dtype
+
+    return types.Array(from_dtype(np.dtype(dtype)), 4, "C")
+
+
+def for_type(sig: tuple, dtype: str = "float64") -> tuple:
+    """A table entry's argument types (written for float64 fields) for a field of ``dtype``:
+    the table's only 4-D float64 arrays are the field's nodes."""
+    if dtype == "float64":
+        return sig
+    f64, ours = field_array(), field_array(dtype)
+    return tuple(ours if a == f64 else a for a in sig)
+
+
+def start(kernel: str, dispatcher, dtype: str = "float64") -> subprocess.Popen | None:
+    """Start compiling ``kernel``'s helpers (a key of ``helper_sigs.HELPERS``) for a field of
+    ``dtype`` in a second process, once per process and type, unless that would not help
+    (above); returns the process."""
+    ours = field_array(dtype)
+    if ((kernel, dtype) in _started or not enabled()
+            or any(ours in sig for sig in dispatcher.overloads)):
         return None
-    _started.add(kernel)
-    if not _writes_cache(dispatcher) or in_disk_cache(dispatcher):
+    _started.add((kernel, dtype))
+    if not _writes_cache(dispatcher) or in_disk_cache(dispatcher, having=ours):
         return None
     root = str(Path(__file__).resolve().parent.parent)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
@@ -167,14 +189,15 @@ def start(kernel: str, dispatcher) -> subprocess.Popen | None:
     folder = tempfile.mkdtemp(prefix="flowkit-compile-")
     atexit.register(shutil.rmtree, folder, ignore_errors=True)
     try:
-        proc = subprocess.Popen([_python(), "-m", "flowkit.parallel_compile", kernel, folder],
+        proc = subprocess.Popen([_python(), "-m", "flowkit.parallel_compile", kernel, folder,
+                                 dtype],
                                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL, env=env)
     except OSError as e:  # the interpreter cannot be started: compile here alone
         LOG.debug("no second compile process: %s", e)
         return None
     global _turns
-    _turns = _Turns(folder, lambda: proc.poll() is None)
+    _turns = _Turns(folder, lambda: proc.poll() is None, dtype)
     # the reaper holds the process, and so the pipe to it, open until it ends (or this one does)
     threading.Thread(target=_reap, args=(proc,), daemon=True, name="flowkit-compile-reaper").start()
     return proc
@@ -185,12 +208,14 @@ def _reap(proc: subprocess.Popen) -> None:
     proc.stdin.close()
 
 
-def compile_helpers(kernel: str, go_on=lambda: True) -> None:
-    """Compile ``kernel``'s helpers, last asked for first (an entry that no longer matches its
-    function, or that the first process has claimed, is skipped), while ``go_on()``."""
+def compile_helpers(kernel: str, go_on=lambda: True, dtype: str = "float64") -> None:
+    """Compile ``kernel``'s helpers for a field of ``dtype``, last asked for first (an entry
+    that no longer matches its function, or that the first process has claimed, is skipped),
+    while ``go_on()``."""
     from .helper_sigs import HELPERS
 
     for module, name, sig in reversed(HELPERS[kernel]):
+        sig = for_type(sig, dtype)
         if not go_on():
             return
         if _turns is not None and not _turns.claim((module, name, sig)):
@@ -306,16 +331,18 @@ def main(argv=None) -> int:
             code = "from flowkit.parallel_compile import write_table; print(write_table())"
             return subprocess.run([sys.executable, "-c", code], check=False,
                                   env=dict(os.environ, NUMBA_CACHE_DIR=cache)).returncode
-    kernel, *folder = argv  # (the folder of turns: where a first process takes its share)
+    # the folder of turns (where a first process takes its share) and the field's type
+    kernel, *rest = argv
+    dtype = rest[1] if len(rest) > 1 else "float64"
     import flowkit  # noqa: F401 (the cache location, as in the process that started this one)
 
     global _turns
     alive = _parent_alive()
-    if folder:
-        _turns = _Turns(folder[0], alive.is_set)
-    compile_helpers(kernel)
+    if rest:
+        _turns = _Turns(rest[0], alive.is_set, dtype)
+    compile_helpers(kernel, dtype=dtype)
     for nxt in NEXT.get(kernel, ()):
-        compile_helpers(nxt, alive.is_set)
+        compile_helpers(nxt, alive.is_set, dtype)
     return 0
 
 

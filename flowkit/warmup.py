@@ -1,14 +1,16 @@
 """Compile flowkit's kernels ahead of use, so that an image or a cluster is warmed once.
 
-A kernel's machine code depends on the types of its arguments, never on the data: every Field
-holds float64 C-contiguous arrays, so a short trace on a small stand-in field compiles the very
-specializations that the same options compile on a user's data, and numba's disk cache keeps
+A kernel's machine code depends on the types of its arguments, never on the data: a Field
+holds C-contiguous float64 or float32 arrays (as its file stores them), so a short trace on a
+small stand-in field of the same type compiles the very specializations that the same options
+compile on a user's data, and numba's disk cache keeps
 them for every later process (where that cache lives: docs/integrator.md, "Where the compiled
 code lives").  The stand-in grid is uniform, so options that run the lock-step on a uniform grid
 compile it too.
 
 ``WHAT`` names: a set of options from ``OPTION_SETS`` ("default" is what ``flowkit trace`` and
-``flowkit.trace`` run with no option named; "all" is every set), or a scene file, whose trace
+``flowkit.trace`` run with no option named; "all" is every set), compiled for float64 and
+float32 fields (``TYPES``; a kernel compiles once per type it reads), or a scene file, whose trace
 options (with the attributes its styles read) are compiled, and its views rendered small, for
 the renderer's level-of-detail kernels.
 """
@@ -49,28 +51,37 @@ class Compiled:
     compile_seconds: float
 
 
-def stand_in(scalars=("T",), t: float = 0.0):
+def stand_in(scalars=("T",), t: float = 0.0, dtype=np.float64):
     """A small uniform field (9 x 7 x 9 nodes, a swirl with a drift) with the scalar fields
-    ``scalars`` (each the x coordinate), at time ``t``."""
+    ``scalars`` (each the x coordinate), at time ``t``, its arrays of type ``dtype``."""
     from .fields import Field, Grid
 
     g = Grid.regular((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (9, 7, 9))
     x, y, z = np.meshgrid(g.x, g.y, g.z, indexing="ij")
-    vec = np.stack([-(z - 4.0), 0.1 + 0.0 * y + 0.01 * t, x - 4.0], axis=-1)
-    return Field(g, vec, {s: x.copy() for s in scalars}, source="<stand-in>", time=t)
+    vec = np.stack([-(z - 4.0), 0.1 + 0.0 * y + 0.01 * t, x - 4.0], axis=-1).astype(dtype)
+    return Field(g, vec, {s: x.astype(dtype) for s in scalars}, source="<stand-in>", time=t)
 
 
 SEEDS = np.array([[3.0, 1.0, 4.0], [5.0, 2.0, 4.0], [4.0, 3.0, 2.5], [2.0, 1.5, 5.5]])
 
 
-def jobs(what) -> list[tuple[str, callable]]:
-    """(label, run) for each name or scene file in ``what``; errors name the unknown one."""
+# the types a Field holds (fields/stored.py): option sets compile for each, scenes for their own
+TYPES = ("float64", "float32")
+
+
+def jobs(what, types=TYPES) -> list[tuple[str, callable]]:
+    """(label, run) for each name or scene file in ``what``, an option set once per field type
+    in ``types``; errors name the unknown one."""
     out = []
+    for t in types:
+        if t not in TYPES:
+            raise ValueError(f"flowkit compile: field type '{t}' is not one of {', '.join(TYPES)}")
     for w in what:
         if w == "all":
-            out += jobs(list(OPTION_SETS))
+            out += jobs(list(OPTION_SETS), types)
         elif w in OPTION_SETS:
-            out.append((w, _option_set(w)))
+            out += [(w if t == TYPES[0] else f"{w} ({t})", _option_set(w, np.dtype(t)))
+                    for t in types]
         elif str(w).endswith(".toml") or Path(w).is_file():
             out.append((str(w), _scene(w)))
         else:
@@ -80,13 +91,13 @@ def jobs(what) -> list[tuple[str, callable]]:
     return out
 
 
-def _option_set(name: str):
+def _option_set(name: str, dtype):
     from .integrate.options import TraceOptions
 
     opts = TraceOptions(max_length=4.0, **OPTION_SETS[name][1])
     if name == "pathlines":
-        return lambda: _pathlines(opts)
-    return lambda: _trace(opts, EVEN_SPEC if name == "even" else None)
+        return lambda: _pathlines(opts, dtype)
+    return lambda: _trace(opts, EVEN_SPEC if name == "even" else None, dtype)
 
 
 def _scene(path):
@@ -96,17 +107,29 @@ def _scene(path):
 
     plan = make_plan(load_scene(path))  # validates the file now, before anything compiles
     even = parse_even_spec(plan.scene.seeds) is not None  # the seeder's kernels too
-    return lambda: _render(plan, _trace(plan.options, EVEN_SPEC if even else None))
+    dtype = _scene_dtype(plan)
+    return lambda: _render(plan, _trace(plan.options, EVEN_SPEC if even else None, dtype))
 
 
-def _trace(opts, even=None):
-    """A short trace on the stand-in from SEEDS, or evenly spaced lines by the spec ``even``."""
+def _scene_dtype(plan):
+    """The type the scene's field is stored in (its metadata only), float64 where it cannot
+    be opened now (a scene may name a file that is written later)."""
+    try:
+        return plan.snapshots[0].load(plan.scene.field.vector).dtype
+    except Exception:  # noqa: BLE001 (warming is best effort; the scene run says what is wrong)
+        return np.float64
+
+
+def _trace(opts, even=None, dtype=np.float64):
+    """A short trace on the stand-in (of type ``dtype``) from SEEDS, or evenly spaced lines by
+    the spec ``even``."""
     from .integrate.attributes import ATTRIBUTES
     from .integrate.trace import trace
     from .seeding import trace_spec
 
     scalars = [a for a in opts.attributes if a not in ATTRIBUTES]
-    field, opts = stand_in(scalars or ("T",)), opts.replace(max_length=min(opts.max_length, 4.0))
+    field = stand_in(scalars or ("T",), dtype=dtype)
+    opts = opts.replace(max_length=min(opts.max_length, 4.0))
     return trace(field, SEEDS, opts) if even is None else trace_spec(field, even, opts)
 
 
@@ -125,10 +148,10 @@ def _render(plan, lines) -> None:
         LOG.warning("the renderer's kernels are not compiled (no OpenGL here): %s", e)
 
 
-def _pathlines(opts):
+def _pathlines(opts, dtype=np.float64):
     from .integrate.pathlines import pathlines
 
-    pathlines([(0.0, stand_in(t=0.0)), (1.0, stand_in(t=1.0))], SEEDS,
+    pathlines([(0.0, stand_in(t=0.0, dtype=dtype)), (1.0, stand_in(t=1.0, dtype=dtype))], SEEDS,
               opts.replace(max_time=1.0))
 
 

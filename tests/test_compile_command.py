@@ -66,7 +66,11 @@ def test_what_to_compile_is_checked_before_anything_compiles(tmp_path):
     bad.write_text("version = 1\n[trace]\nmethodd = 'rk4'\n")
     with pytest.raises(ValueError, match="scene.toml"):
         warmup.jobs([str(bad)])
-    assert [label for label, _ in warmup.jobs(["all"])] == list(warmup.OPTION_SETS)
+    assert [label for label, _ in warmup.jobs(["all"])] == [
+        f"{n}{t}" for n in warmup.OPTION_SETS for t in ("", " (float32)")]
+    assert [label for label, _ in warmup.jobs(["rk4"], ["float32"])] == ["rk4 (float32)"]
+    with pytest.raises(ValueError, match="'int8' is not one of float64, float32"):
+        warmup.jobs(["default"], ["int8"])
 
 
 EVEN_RUN = SCENE_RUN.split("import sys")[0] + """
@@ -97,7 +101,7 @@ def test_a_scene_with_evenly_spaced_seeds_warms_the_seeder(tmp_path, monkeypatch
                      .replace('halo = "styles/halo.toml"',
                               f'halo = "{ROOT / "examples" / "styles" / "halo.toml"}"'))
     seen = []
-    monkeypatch.setattr(warmup, "_trace", lambda opts, even=None: seen.append(even))
+    monkeypatch.setattr(warmup, "_trace", lambda opts, even=None, dtype=None: seen.append(even))
     monkeypatch.setattr(warmup, "_render", lambda plan, lines: None)
     for _, run in warmup.jobs([str(scene), str(ROOT / "examples" / "hotroom_scene.toml")]):
         run()

@@ -232,7 +232,11 @@ def test_npy_single_vector_array(tmp_path):
     np.save(tmp_path / "u.npy", U.astype(np.float32))
     f = load_field(tmp_path / "u.npy")
     assert f.grid.shape == (4, 3, 5) and np.array_equal(f.grid.x, [0, 1, 2, 3])
-    assert any("origin" in n for n in f.notes) and any("float32" in n for n in f.notes)
+    assert any("origin" in n for n in f.notes)
+    # float32 stays float32 (read when used, from the memory-mapped file), with no note
+    assert not f.vector_in_memory() and f.dtype == np.float32
+    assert f.vector.dtype == np.float32 and not any("float32" in n for n in f.notes)
+    np.testing.assert_array_equal(f.vector, U.astype(np.float32))
     g = load_field(tmp_path / "u.npy", x=RECT_AXES[0], y=RECT_AXES[1], z=RECT_AXES[2])
     np.testing.assert_array_equal(g.grid.z, RECT_AXES[2])
 
@@ -313,7 +317,7 @@ def test_nan_and_inf_are_allowed_counted_and_reported(tmp_path):
     f = load_field(tmp_path / "nan.npz")
     s = f.summary()
     assert "U: vector (3)" in s and "3 NaN" in s  # one node, three components
-    assert "T: scalar, range [" in s and "1 NaN, 1 inf" in s
+    assert "T: scalar, float64" in s and "range [" in s and "1 NaN, 1 inf" in s
 
 
 def test_vector_name_not_in_file_lists_the_names(tmp_path):

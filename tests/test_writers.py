@@ -67,7 +67,9 @@ def test_float32_and_other_vector_name(tmp_path):
         save_field(f, tmp_path / name, dtype=np.float32)
         g = load_field(tmp_path / name, vector="vel")
         np.testing.assert_array_equal(g.vector, f.vector.astype(np.float32))
-        assert g.time is None and any("float32" in n for n in g.notes)
+        # kept as stored, nothing converted
+        assert g.vector.dtype == np.float32 and g.scalars["T"].dtype == np.float32
+        assert g.time is None and not any("converted" in n for n in g.notes)
 
 
 def test_h5_layout_and_series(tmp_path):

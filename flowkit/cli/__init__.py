@@ -51,7 +51,8 @@ def main(argv=None) -> int:
         with warnings.catch_warnings():  # (restores Python's own display after the command)
             warnings.showwarning = _show_warning
             return int(args.func(args) or 0)
-    except (CLIError, FileNotFoundError, ValueError, KeyError, OSError) as e:
+    # (MemoryError: a field that does not fit, FieldMemoryError, says so in one line)
+    except (CLIError, FileNotFoundError, ValueError, KeyError, OSError, MemoryError) as e:
         msg = e.args[0] if isinstance(e, KeyError) and e.args else e
         print(f"flowkit {args.command}: error: {msg}", file=sys.stderr)
         return 2

@@ -3,7 +3,9 @@
 WHAT is an option set (default, attributes, rk4, dop853, no-cell-aware, lockstep, rosenbrock,
 pathlines, or all of them) or a scene file (its trace options and the attributes its styles
 read, and its views rendered small, which compiles the renderer's level-of-detail kernels);
-without WHAT, the default options.  Each is a short trace on a small stand-in field:
+without WHAT, the default options.  An option set compiles for fields stored as float64 and as
+float32 (``--types``: a kernel compiles once per array type it reads); a scene for the type its
+field is stored in.  Each is a short trace on a small stand-in field:
 the machine code depends on the options, not on the data, and numba's disk cache keeps it for
 every later process (a container image built with it, or every worker of a cluster pointed at
 one shared NUMBA_CACHE_DIR).  Prints what was compiled and the seconds it took.
@@ -20,6 +22,8 @@ def register(subparsers) -> None:
                               "need, so later runs start warm", description=__doc__)
     p.add_argument("what", nargs="*", default=["default"], metavar="WHAT",
                    help="option set or scene file (default: default)")
+    p.add_argument("--types", default="float64,float32",
+                   help="field types the option sets compile for (default: float64,float32)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -31,7 +35,7 @@ def run(args) -> int:
 
     from .. import warmup
 
-    todo = warmup.jobs(args.what)
+    todo = warmup.jobs(args.what, [t.strip() for t in args.types.split(",") if t.strip()])
     notice = logging.getLogger("flowkit.compile")
     was, notice.disabled = notice.disabled, True  # the bar says it already
     t0 = time.perf_counter()

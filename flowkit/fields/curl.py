@@ -167,12 +167,13 @@ def _tables(grid):
 
 @inline
 def _at(vec, axis, i, j, k, m, comp):
-    """vec at node (i, j, k) with its index along ``axis`` replaced by m."""
+    """vec at node (i, j, k) with its index along ``axis`` replaced by m, as float64 (a
+    float32 field's curl is then its float64 copy's)."""
     if axis == 0:
-        return vec[m, j, k, comp]
+        return np.float64(vec[m, j, k, comp])
     if axis == 1:
-        return vec[i, m, k, comp]
-    return vec[i, j, m, comp]
+        return np.float64(vec[i, m, k, comp])
+    return np.float64(vec[i, j, m, comp])
 
 
 @inline
@@ -338,7 +339,7 @@ def _sample_rows(start, stop, gx, gy, gz, period, inv, shape, words, base, rows,
 
 def curl(field) -> np.ndarray:
     """Curl of the node vector field at every node, (nx, ny, nz, 3)."""
-    vec = np.ascontiguousarray(field.vector, dtype=np.float64)
+    vec = field.vector
     out = np.empty((int(np.prod(vec.shape[:3])), 3))
     run_ranges(_curl_range, out.shape[0], np.empty(0, np.int64), vec, *_tables(field.grid), out)
     return out.reshape(vec.shape)
@@ -353,7 +354,7 @@ def vorticity_at(field, points) -> np.ndarray:
     the marked nodes only.  (A grid-sized curl array, even written only at those nodes, cost a
     page fault for every 4 KiB page they touched: a third of the time.)"""
     g = field.grid
-    vec = np.ascontiguousarray(field.vector, dtype=np.float64)
+    vec = field.vector
     pts = np.ascontiguousarray(points, dtype=np.float64)
     shape = np.array(vec.shape[:3], np.int64)
     n_nodes = int(np.prod(shape))

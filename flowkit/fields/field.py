@@ -2,21 +2,71 @@
 
 from __future__ import annotations
 
+from collections.abc import MutableMapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import interp
 from .grid import Grid
+from .stored import Stored, as_kept, fmt_bytes
 
 
 class FieldError(ValueError):
     """Field arrays that do not fit the grid or each other."""
 
 
+class Arrays(MutableMapping):
+    """Scalar fields by name.  A ``Stored`` one (still in its file) is read on first access
+    and kept; names, shapes and types are known without reading (``meta``).  An array set by
+    name must have the grid's shape."""
+
+    def __init__(self, items: dict, shape: tuple, source: str = "<memory>"):
+        self.shape, self.source, self._items = shape, source, {}
+        for n, a in items.items():
+            self[n] = a
+
+    def __setitem__(self, name, a):
+        a = a if isinstance(a, Stored) else np.asarray(a)
+        if a.shape != self.shape:
+            raise FieldError(f"{self.source}: scalar '{name}' has shape {a.shape}, expected "
+                             f"{self.shape} (nx, ny, nz)")
+        self._items[name] = a if isinstance(a, Stored) else as_kept(a)
+
+    def __delitem__(self, name):
+        del self._items[name]
+
+    def __getitem__(self, name):
+        a = self._items[name]
+        if isinstance(a, Stored):
+            a = self._items[name] = a.read()
+        return a
+
+    def __iter__(self):
+        return iter(self._items)
+
+    def __len__(self):
+        return len(self._items)
+
+    def meta(self, name):
+        """The array itself where it is in memory, else its Stored handle (shape, dtype,
+        chunks): what a summary needs, without reading."""
+        return self._items[name]
+
+    def in_memory(self, name) -> bool:
+        return not isinstance(self._items[name], Stored)
+
+    def __repr__(self):
+        return f"Arrays({', '.join(self._items)})"
+
+
 @dataclass(eq=False)
 class Field:
-    """``vector`` is (nx, ny, nz, 3) float64; ``scalars`` maps names to (nx, ny, nz) float64.
+    """``vector`` is (nx, ny, nz, 3) node data; ``scalars`` maps names to (nx, ny, nz) node data.
+
+    Arrays are float32 or float64, as the file stores them (other types become float64; the
+    integrator computes in float64 either way: see ``stored.py``), and may be given as
+    ``Stored`` handles, read when first used: ``vector`` and ``scalars[name]`` read them.
 
     ``source`` names where the data came from (a file path, an analytic field) so that errors
     and summaries can say so; ``time`` is the snapshot time when known, in seconds (since
@@ -28,7 +78,7 @@ class Field:
     """
 
     grid: Grid
-    vector: np.ndarray
+    vector: np.ndarray  # (a property, below: a Stored vector is read on first use)
     scalars: dict[str, np.ndarray] = field(default_factory=dict)
     vector_name: str = "U"
     source: str = "<memory>"
@@ -39,23 +89,35 @@ class Field:
     time_origin: str | None = None
 
     def __post_init__(self):
-        shape = self.grid.shape
-        v = np.asarray(self.vector)
-        if v.shape != shape + (3,):
+        self._check_vector(self._vector)
+        items = self.scalars._items if isinstance(self.scalars, Arrays) else self.scalars
+        self.scalars = Arrays(dict(items), self.grid.shape, self.source)
+
+    def _check_vector(self, v):
+        if v.shape != self.grid.shape + (3,):
             raise FieldError(
                 f"{self.source}: vector '{self.vector_name}' has shape {v.shape}, "
-                f"expected {shape + (3,)} (nx, ny, nz, 3) for the grid"
+                f"expected {self.grid.shape + (3,)} (nx, ny, nz, 3) for the grid"
             )
-        self.vector = np.ascontiguousarray(v, dtype=np.float64)
-        checked = {}
-        for name, a in self.scalars.items():
-            a = np.asarray(a)
-            if a.shape != shape:
-                raise FieldError(
-                    f"{self.source}: scalar '{name}' has shape {a.shape}, expected {shape} (nx, ny, nz)"
-                )
-            checked[name] = np.ascontiguousarray(a, dtype=np.float64)
-        self.scalars = checked
+
+    def _get_vector(self) -> np.ndarray:
+        if isinstance(self._vector, Stored):
+            self._vector = self._vector.read()
+        return self._vector
+
+    def _set_vector(self, v):
+        v = v if isinstance(v, Stored) else as_kept(v)
+        if "vector_name" in self.__dict__:  # (set again after __init__: checked here)
+            self._check_vector(v)
+        self._vector = v
+
+    @property
+    def dtype(self) -> np.dtype:
+        """The type the vector is held in (float32 or float64), known without reading it."""
+        return self._vector.dtype
+
+    def vector_in_memory(self) -> bool:
+        return not isinstance(self._vector, Stored)
 
     # -- sampling -------------------------------------------------------------------------
     def sample(self, points) -> tuple[np.ndarray, np.ndarray]:
@@ -100,7 +162,9 @@ class Field:
 
     # -- statistics -----------------------------------------------------------------------
     def speed(self) -> np.ndarray:
-        return np.sqrt(np.einsum("...i,...i->...", self.vector, self.vector))
+        """Node speeds, float64 whatever the vector's type."""
+        v = self.vector
+        return np.sqrt(np.einsum("...i,...i->...", v, v, dtype=np.float64))
 
     def typical_speed(self) -> float:
         """Median of the finite nonzero node speeds (0 for an all-zero field)."""
@@ -109,9 +173,14 @@ class Field:
         return float(np.median(s)) if s.size else 0.0
 
     def arrays(self) -> dict[str, np.ndarray]:
+        """Every array by name, the vector first (each read from its file if it is not yet)."""
         return {self.vector_name: self.vector, **self.scalars}
 
-    def summary(self) -> str:
+    def summary(self, stats: bool = True, progress=None) -> str:
+        """What ``flowkit info`` prints: grid, arrays (type, size, chunking, units) and notes;
+        with ``stats`` each array's range and NaN/inf counts too, computed slab by slab (an
+        array still in its file is read a slab at a time, never whole; ``progress(nbytes)``
+        after each slab)."""
         lines = [f"field: {self.source}"]
         if self.time is not None:
             date = (f" s since {self.time_origin} = {date_of(self.time, self.time_origin)}"
@@ -121,13 +190,29 @@ class Field:
         if self.length_units:
             lines.append(f"lengths in {self.length_units}")
         lines.append("arrays (point data):")
-        for name, a in self.arrays().items():
+        metas = {self.vector_name: self._vector,
+                 **{n: self.scalars.meta(n) for n in self.scalars}}
+        for name, a in metas.items():
             unit = f" [{self.units[name]}]" if self.units.get(name) else ""
-            lines.append("  " + _describe_array(name, a, is_vector=a is self.vector, unit=unit))
+            is_vector = name == self.vector_name
+            line = f"  {name}{unit}: {'vector (3)' if is_vector else 'scalar'}, {_storage(a)}"
+            if stats:
+                line += ", " + _statistics(name, a, is_vector, progress)
+            lines.append(line)
         for n in self.notes:
             lines.append(f"note: {n}")
         return "\n".join(lines)
 
+    def __repr__(self):
+        return f"<Field {self.source}: {self.grid.shape}, {self.vector_name} {self.dtype}, " \
+               f"scalars: {', '.join(self.scalars) or 'none'}>"
+
+
+
+# the vector: read from its file on first use (a dataclass field whose attribute is a property,
+# so that the generated __init__ and dataclasses.replace go through the setter)
+Field.vector = property(Field._get_vector, Field._set_vector,
+                        doc="The vector node array, read from its file on first use.")
 
 def date_of(seconds: float, origin: str) -> str:
     """The date ``seconds`` after ``origin`` (an ISO date, ``Field.time_origin``), to the
@@ -143,22 +228,53 @@ def _points(points) -> np.ndarray:
     return pts
 
 
-def _describe_array(name: str, a: np.ndarray, is_vector: bool, unit: str = "") -> str:
-    finite = np.isfinite(a)
-    n_nan = int(np.isnan(a).sum())
-    n_inf = int(np.isinf(a).sum())
-    kind = "vector (3)" if is_vector else "scalar"
+def _storage(a) -> str:
+    """Type, size and (for an array still in its file) chunking and the type the file stores."""
+    text = f"{a.dtype}, {fmt_bytes(a.nbytes)}"
+    if isinstance(a, Stored):
+        if a.stored.newbyteorder("=") != a.dtype:
+            text += f" (stored as {a.stored})"
+        text += f", chunks {'x'.join(map(str, a.chunks))}" if a.chunks else ", contiguous"
+    return text
+
+
+def _slabs(a, progress):
+    """(slab) along x of an in-memory array or a Stored one, each a bounded piece."""
+    if isinstance(a, Stored):
+        for _, _, slab in a.slabs(progress):
+            yield slab
+        return
+    step = max(1, (64 << 20) // max(1, a[:1].nbytes))
+    for i0 in range(0, a.shape[0], step):
+        yield a[i0:i0 + step]
+
+
+def _statistics(name: str, a, is_vector: bool, progress=None) -> str:
+    """Range (the magnitude's and each component's for a vector) and NaN/inf counts, over
+    slabs: memory bounded by a slab whatever the array's size."""
+    n_nan = n_inf = 0
+    lo = np.full(4, np.inf)
+    hi = np.full(4, -np.inf)
+    for slab in _slabs(a, progress):
+        n_nan += int(np.isnan(slab).sum())
+        n_inf += int(np.isinf(slab).sum())
+        if is_vector:
+            mag = np.sqrt(np.einsum("...i,...i->...", slab, slab, dtype=np.float64))
+            cols = [mag, *(slab[..., i] for i in range(3))]
+        else:
+            cols = [slab]
+        for i, c in enumerate(cols):
+            c = c[np.isfinite(c)]
+            if c.size:
+                lo[i], hi[i] = min(lo[i], float(c.min())), max(hi[i], float(c.max()))
     if is_vector:
-        mag = np.sqrt(np.einsum("...i,...i->...", a, a))
-        ok = np.isfinite(mag)
-        rng = f"|{name}| in [{mag[ok].min():.6g}, {mag[ok].max():.6g}]" if ok.any() else "no finite values"
-        comps = " ".join(
-            f"{c}:[{a[..., i][finite[..., i]].min():.4g}, {a[..., i][finite[..., i]].max():.4g}]"
-            for i, c in enumerate("xyz") if finite[..., i].any()
-        )
-        rng += f" ({comps})"
+        rng = (f"|{name}| in [{lo[0]:.6g}, {hi[0]:.6g}]" if np.isfinite(lo[0])
+               else "no finite values")
+        comps = " ".join(f"{c}:[{lo[i + 1]:.4g}, {hi[i + 1]:.4g}]"
+                         for i, c in enumerate("xyz") if np.isfinite(lo[i + 1]))
+        rng += f" ({comps})" if comps else ""
     else:
-        rng = f"range [{a[finite].min():.6g}, {a[finite].max():.6g}]" if finite.any() else "no finite values"
+        rng = f"range [{lo[0]:.6g}, {hi[0]:.6g}]" if np.isfinite(lo[0]) else "no finite values"
     bad = f", {n_nan} NaN" if n_nan else ""
     bad += f", {n_inf} inf" if n_inf else ""
-    return f"{name}{unit}: {kind}, {rng}{bad}"
+    return rng + bad

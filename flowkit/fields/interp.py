@@ -262,8 +262,10 @@ def _sample_range(start, stop, gx, gy, gz, period, inv, vec, arr, pts, out, out_
         status[n] = NAN_CELL if bad else INSIDE
 
 
-# "not sampled": empty arrays of the kernel's argument types (one signature for every use)
-_NO_VEC, _NO_ARR = np.zeros((0, 1, 1, 3)), np.zeros((0, 1, 1))
+# "not sampled": empty arrays of the kernel's argument types, of the type of the array that is
+# sampled (one signature for every use on a field of one type)
+_NO_VEC = {np.dtype(t): np.zeros((0, 1, 1, 3), t) for t in (np.float32, np.float64)}
+_NO_ARR = {np.dtype(t): np.zeros((0, 1, 1), t) for t in (np.float32, np.float64)}
 _NO_OUT, _NO_OUT_S = np.zeros((0, 3)), np.zeros(0)
 
 
@@ -278,9 +280,9 @@ def sample(gx, gy, gz, period, inv, vec, arr, pts, out, out_s, status):
 
 def sample_vectors(gx, gy, gz, period, inv, vec, pts, out, status):
     """``sample`` of a vector alone."""
-    sample(gx, gy, gz, period, inv, vec, _NO_ARR, pts, out, _NO_OUT_S, status)
+    sample(gx, gy, gz, period, inv, vec, _NO_ARR[vec.dtype], pts, out, _NO_OUT_S, status)
 
 
 def sample_scalars(gx, gy, gz, period, inv, arr, pts, out, status):
     """``sample`` of a scalar alone."""
-    sample(gx, gy, gz, period, inv, _NO_VEC, arr, pts, _NO_OUT, out, status)
+    sample(gx, gy, gz, period, inv, _NO_VEC[arr.dtype], arr, pts, _NO_OUT, out, status)

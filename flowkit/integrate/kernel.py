@@ -180,15 +180,15 @@ def _gather(vec, ci, coef):
     j1 = j + 1 if j + 1 < ny else 0
     k1 = k + 1 if k + 1 < nz else 0
     bad = 0.0
-    for c in range(3):
-        v000 = vec[i, j, k, c]
-        v100 = vec[i1, j, k, c]
-        v010 = vec[i, j1, k, c]
-        v110 = vec[i1, j1, k, c]
-        v001 = vec[i, j, k1, c]
-        v101 = vec[i1, j, k1, c]
-        v011 = vec[i, j1, k1, c]
-        v111 = vec[i1, j1, k1, c]
+    for c in range(3):  # (float64 before any arithmetic: a float32 field gives the same lines)
+        v000 = np.float64(vec[i, j, k, c])
+        v100 = np.float64(vec[i1, j, k, c])
+        v010 = np.float64(vec[i, j1, k, c])
+        v110 = np.float64(vec[i1, j1, k, c])
+        v001 = np.float64(vec[i, j, k1, c])
+        v101 = np.float64(vec[i1, j, k1, c])
+        v011 = np.float64(vec[i, j1, k1, c])
+        v111 = np.float64(vec[i1, j1, k1, c])
         coef[0, c] = v000
         coef[1, c] = v100 - v000
         coef[2, c] = v010 - v000
@@ -1152,7 +1152,8 @@ def advance(launch):
     costs several seconds more to compile on every fresh machine."""
     from .. import parallel_compile  # (here: `python -m flowkit.parallel_compile` runs it)
 
-    parallel_compile.start("flowkit.integrate.kernel._advance_lines", _advance_lines)
+    parallel_compile.start("flowkit.integrate.kernel._advance_lines", _advance_lines,
+                           str(launch.field.vec.dtype))
     run_ranges(_advance_range, launch.active.size, *launch.arrays())
 
 

@@ -241,14 +241,14 @@ def _component(flat, b, di, dj, dk, c, tx, ty, tz):
     flat[b], its upper corners di, dj, dk further on each axis (all unsigned: a wrap cell's
     negative offset wraps around too): ``kernel._gather``'s coefficients in ``kernel._fc``'s
     Horner form."""
-    v000 = flat[b + c]
-    v100 = flat[b + di + c]
-    v010 = flat[b + dj + c]
-    v110 = flat[b + di + dj + c]
-    v001 = flat[b + dk + c]
-    v101 = flat[b + di + dk + c]
-    v011 = flat[b + dj + dk + c]
-    v111 = flat[b + di + dj + dk + c]
+    v000 = np.float64(flat[b + c])  # (float64 before any arithmetic, as kernel._gather)
+    v100 = np.float64(flat[b + di + c])
+    v010 = np.float64(flat[b + dj + c])
+    v110 = np.float64(flat[b + di + dj + c])
+    v001 = np.float64(flat[b + dk + c])
+    v101 = np.float64(flat[b + di + dk + c])
+    v011 = np.float64(flat[b + dj + dk + c])
+    v111 = np.float64(flat[b + di + dj + dk + c])
     a1 = v100 - v000
     a2 = v010 - v000
     a3 = v001 - v000

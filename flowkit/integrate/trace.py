@@ -162,7 +162,7 @@ def _typical_speed(field: Field, max_nodes: int = 1 << 17) -> float:
 def _sampled_speed(field: Field, max_nodes: int) -> float:
     shape = np.array(field.grid.shape)
     stride = max(1, int(np.ceil((shape.prod() / max_nodes) ** (1 / 3))))
-    v = field.vector[::stride, ::stride, ::stride]
+    v = field.vector[::stride, ::stride, ::stride].astype(np.float64)  # (as float64 data's)
     sp = np.hypot(np.hypot(v[..., 0], v[..., 1]), v[..., 2]).ravel()  # no over/underflow
     sp = sp[np.isfinite(sp) & (sp > 0)]
     return float(np.median(sp)) if sp.size else 0.0

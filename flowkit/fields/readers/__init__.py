@@ -10,7 +10,13 @@ Formats by extension (module docstrings give the details):
   ``data="cell"`` for cell data.
 - ``.vtu`` (vtu.py, needs meshio): lattice rebuilt exactly, else ``shape=``, ``bounds=`` or
   ``grid=`` to resample; ``data="cell"`` for cell data.
-- ``.nc`` ``.nc4`` ``.netcdf`` (xarray_io.py): ``u=, v=, w=, scalars=, dims=``.
+- ``.nc`` ``.nc4`` ``.netcdf`` (xarray_io.py): ``u=, v=, w=, scalars=, dims=``; ``.zarr``
+  stores (a directory) the same way; an xarray Dataset (dask-backed or not) through
+  ``from_xarray``.
+
+Arrays are read when first used, a slab at a time, in the type the file stores (float32 or
+float64; ``fields/stored.py``), except where the format needs the whole file parsed (.npz,
+.vti/.vtr, .vtu).
 - ``.series`` (ParaView series JSON): one snapshot of the series, loaded by its own reader.
 
 Options every reader takes: ``vector`` (default "U"), ``periodic`` and ``period`` (see Grid).
@@ -29,7 +35,7 @@ from .npz import read_npy, read_npz
 from .series import SnapshotRef, read_glob, read_series_json
 from .vtk_xml import read_vtk_xml
 from .vtu import find_lattice, read_vtu
-from .xarray_io import from_xarray, netcdf_times, read_netcdf
+from .xarray_io import from_xarray, netcdf_times, read_netcdf, read_zarr
 
 HDF5_EXT = (".h5", ".hdf5", ".hdf")
 NETCDF_EXT = (".nc", ".nc4", ".netcdf")
@@ -41,6 +47,7 @@ READERS = {
     ".vtu": read_vtu,
     **{e: read_hdf5 for e in HDF5_EXT},
     **{e: read_netcdf for e in NETCDF_EXT},
+    ".zarr": read_zarr,
 }
 KNOWN_EXTENSIONS = tuple(sorted([*READERS, ".series"]))
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..field import Field
 from ..grid import Grid, GridError
+from ..stored import InMemory, Stored, kept_dtype
 
 
 class ReaderError(ValueError):
@@ -57,7 +58,13 @@ def vectors_and_scalars(where, shape, arrays: dict, vector: str):
             )
         used = {vector}
     elif all(c in arrays for c in comps):
-        vec = np.stack([arrays[c] for c in comps], axis=-1)
+        parts = [arrays[c] for c in comps]
+        if any(isinstance(a, Stored) for a in parts):  # stacked when read, not now
+            parts = [a if isinstance(a, Stored) else Stored(a.shape, a.dtype, InMemory(a), n)
+                     for a, n in zip(parts, comps)]
+            vec = Stored.stacked(parts, f"{where}: {vector}")
+        else:
+            vec = np.stack(parts, axis=-1)
         used = set(comps)
     else:
         raise ReaderError(
@@ -92,8 +99,10 @@ def _names(names) -> str:
 
 
 def dtype_note(arrays: dict) -> list[str]:
-    """Say when the file stored arrays in a type other than float64 (Field computes in float64)."""
-    kinds = sorted({str(a.dtype) for a in arrays.values() if a.dtype != np.float64})
+    """Say when the file stored arrays in a type a Field does not hold (float32 and float64
+    stay as they are; anything else becomes float64)."""
+    stored = [a.stored if isinstance(a, Stored) else a.dtype for a in arrays.values()]
+    kinds = sorted({str(d) for d in stored if kept_dtype(d) != d.newbyteorder("=")})
     return (
         [f"arrays stored as {', '.join(kinds)} in the file, converted to float64"] if kinds else []
     )
@@ -152,7 +161,8 @@ def make_field(
         c = np.asarray(c)
         if c.ndim == 1 and c.size >= 2 and np.all(np.diff(c) < 0):
             c = c[::-1]
-            arrays = {n: np.flip(v, axis=a) for n, v in arrays.items()}
+            arrays = {n: v.flipped((a,)) if isinstance(v, Stored) else np.flip(v, axis=a)
+                      for n, v in arrays.items()}
             flipped.append("xyz"[a])
         axes.append(c)
     if flipped:

@@ -13,7 +13,9 @@ flowkit field layout, version 1 (``FORMAT_VERSION``)::
     several snapshots: /snapshots/0000, /snapshots/0001, ... each a group with attr time and its
                        own vectors/ and scalars/ as above, in time order
 
-Arrays keep the dtype they were written with (e.g. float32) and may be chunked and compressed.
+Arrays keep the dtype they were written with (e.g. float32) and may be chunked and compressed;
+they are read when first used (``stored.py``), a slab along x at a time, straight into the
+Field's array.
 ``load_field(path, snapshot=i)`` or ``time=t`` picks a snapshot (default: the first).
 
 Any other HDF5 file: give dataset paths, e.g.
@@ -27,6 +29,7 @@ from __future__ import annotations
 import h5py
 import numpy as np
 
+from ..stored import Source, Stored
 from ._common import ReaderError, existing, fmt_times, make_field, select_snapshot
 
 FORMAT = "field"
@@ -128,7 +131,7 @@ def _read_flowkit(path, f, vector, snapshot, time, periodic, period):
     arrays, units = {}, {}
     for kind in ("vectors", "scalars"):
         if kind in g:
-            arrays.update({name: ds[()] for name, ds in g[kind].items()})
+            arrays.update({name: stored(path, ds) for name, ds in g[kind].items()})
             units.update(_units(g[kind].values()))
     if "period" in f.attrs and period is None and not any(np.atleast_1d(periodic)):
         p = np.asarray(f.attrs["period"], float)
@@ -159,16 +162,19 @@ def _read_paths(path, f, vector, x, y, z, u, v, w, scalars, order, periodic, per
             f"got {order!r}"
         )
 
-    def get(p, role):
+    def dataset(p, role):
         if p not in f or not isinstance(f[p], h5py.Dataset):
             raise ReaderError(
                 f"{path}: no dataset '{p}' (given for {role}); datasets in the file: "
                 f"{', '.join(_datasets(f)) or 'none'}"
             )
-        return f[p][()]
+        return f[p]
 
-    def node(a):  # to [i, j, k(, c)]
-        return a.transpose(2, 1, 0, *range(3, a.ndim)) if order == "zyx" else a
+    def get(p, role):
+        return dataset(p, role)[()]
+
+    def node(p, role):  # to [i, j, k(, c)], read when used
+        return stored(path, dataset(p, role), order)
 
     if None in (x, y, z):
         raise ReaderError(f"{path}: give all three coordinate dataset paths x=, y=, z=")
@@ -177,14 +183,14 @@ def _read_paths(path, f, vector, x, y, z, u, v, w, scalars, order, periodic, per
         if None in (v, w):
             raise ReaderError(f"{path}: give all three component paths u=, v=, w=")
         name = vector if vector and "/" not in vector else "U"
-        arrays = {f"{name}_{c}": node(get(p, r)) for p, c, r in zip((u, v, w), "xyz", "uvw")}
+        arrays = {f"{name}_{c}": node(p, r) for p, c, r in zip((u, v, w), "xyz", "uvw")}
     elif vector is not None:
         name = vector.rstrip("/").rsplit("/", 1)[-1]
-        arrays = {name: node(get(vector, "vector"))}
+        arrays = {name: node(vector, "vector")}
     else:
         raise ReaderError(f"{path}: give the vector as vector='/path' or as u=, v=, w= paths")
     for sname, p in (scalars or {}).items():
-        arrays[sname] = node(get(p, f"scalar {sname}"))
+        arrays[sname] = node(p, f"scalar {sname}")
     units = {n: _str(f[p].attrs["units"]) for n, p in (scalars or {}).items()
              if "units" in f[p].attrs}
     comps = {_str(f[p].attrs.get("units", "")) for p in ((u, v, w) if u is not None else (vector,))}
@@ -201,6 +207,39 @@ def _read_paths(path, f, vector, x, y, z, u, v, w, scalars, order, periodic, per
         length_units=_length_units(path, [f[p] for p in (x, y, z)]),
         notes=[f"read from HDF5 datasets given by path (order {order})"],
     )
+
+
+class H5Source(Source):
+    """A dataset of an HDF5 file, by path and name (the file opened for each slab read, so the
+    Field that holds it can be pickled); ``order`` "zyx": indexed [k, j, i(, c)] in the file."""
+
+    def __init__(self, path, name: str, order: str = "xyz"):
+        self.path, self.name, self.order = str(path), name, order
+
+    def fill(self, out, i0, i1):
+        try:
+            with h5py.File(self.path, "r") as f:
+                ds = f[self.name]
+                if self.order == "zyx":
+                    a = ds[:, :, i0:i1]
+                    out[...] = a.transpose(2, 1, 0, *range(3, a.ndim))
+                else:
+                    ds.read_direct(out, source_sel=np.s_[i0:i1])
+        except OSError as e:
+            raise ReaderError(f"{self.path}: dataset '{self.name}' unreadable (truncated or "
+                              f"corrupt): {e}") from None
+
+
+def stored(path, ds: h5py.Dataset, order: str = "xyz") -> Stored:
+    """Dataset ``ds`` as a node array indexed [i, j, k(, c)], read when first used."""
+    shape, chunks = ds.shape, ds.chunks
+    if order == "zyx" and len(shape) >= 3:
+        back = (2, 1, 0, *range(3, len(shape)))
+        shape = tuple(shape[a] for a in back)
+        chunks = None if chunks is None else tuple(chunks[a] for a in back)
+    if not np.issubdtype(ds.dtype, np.number) or np.issubdtype(ds.dtype, np.complexfloating):
+        raise ReaderError(f"{path}: dataset '{ds.name}' holds {ds.dtype}, not real numbers")
+    return Stored(shape, ds.dtype, H5Source(path, ds.name, order), f"{path}:{ds.name}", chunks)
 
 
 def _units(datasets) -> dict[str, str]:

@@ -18,6 +18,7 @@ import zipfile
 
 import numpy as np
 
+from ..stored import InMemory, Stored
 from ._common import ReaderError, existing, make_field
 
 RESERVED = ("x", "y", "z", "time", "period")
@@ -99,7 +100,7 @@ def read_npy(
     period=None,
 ):
     path = existing(path)
-    a = _load(path)
+    a = _mapped(path)
     if not isinstance(a, np.ndarray):
         raise ReaderError(f"{path}: expected a single array in a .npy file")
     _check_numeric(path, {vector: a})
@@ -114,9 +115,20 @@ def read_npy(
         h = np.broadcast_to(np.asarray(spacing, float), (3,))
         x, y, z = (o[i] + h[i] * np.arange(a.shape[i]) for i in range(3))
         notes.append(f"grid not stored in the .npy file: origin {tuple(o)}, spacing {tuple(h)}")
+    if isinstance(a, np.memmap):  # read when used, a slab at a time
+        a = Stored(a.shape, a.dtype, InMemory(a), str(path))
     return make_field(
         path, x, y, z, {vector: a}, vector, notes=notes, periodic=periodic, period=period
     )
+
+
+def _mapped(path):
+    """The .npy file's array memory-mapped (nothing read yet); where it cannot be mapped
+    (objects, a truncated file), as ``_load`` reads it, with its errors."""
+    try:
+        return np.load(path, mmap_mode="r", allow_pickle=False)
+    except (ValueError, OSError):
+        return _load(path)
 
 
 def _check_numeric(path, arrays):

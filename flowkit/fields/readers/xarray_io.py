@@ -14,8 +14,11 @@ variables (default: every other variable on the same dimensions).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
+from ..stored import Source, Stored
 from ._common import ReaderError, existing, make_field, select_snapshot
 
 _AXIS_NAMES = {
@@ -92,7 +95,8 @@ def from_xarray(
     if scalars is None:
         scalars = [n for n in ds.data_vars if n not in (u, v, w) and ds[n].dims == var_dims]
     arrays = {
-        f"{vector_name}_{c}": comp.isel(sel).transpose(*xyz).values for c, comp in zip("xyz", comps)
+        f"{vector_name}_{c}": _stored(comp.isel(sel).transpose(*xyz), where)
+        for c, comp in zip("xyz", comps)
     }
     for n in scalars:
         if n not in ds.data_vars:
@@ -103,7 +107,7 @@ def from_xarray(
             raise ReaderError(
                 f"{where}: scalar '{n}' has dimensions {ds[n].dims}, expected {var_dims}"
             )
-        arrays[str(n)] = ds[n].isel(sel).transpose(*xyz).values
+        arrays[str(n)] = _stored(ds[n].isel(sel).transpose(*xyz), where)
     units = {str(n): ds[n].attrs["units"] for n in scalars if "units" in ds[n].attrs}
     comp_units = {str(c.attrs.get("units", "")) for c in comps}
     if len(comp_units) == 1 and "" not in comp_units:
@@ -126,8 +130,53 @@ def from_xarray(
 
 def read_netcdf(path, vector="U", **opts):
     path = existing(path)
-    return _with_dataset(path, lambda ds: from_xarray(ds.load(), vector_name=vector,
-                                                      source=str(path), **opts))
+    # the file stays open (lazily, by xarray's file manager) for the arrays read when used
+    return _with_dataset(path, lambda ds: from_xarray(ds, vector_name=vector,
+                                                      source=str(path), **opts), close=False)
+
+
+def read_zarr(path, vector="U", **opts):
+    """A zarr store (a directory) through xarray: every array read when used, a slab of its
+    chunks at a time."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    try:
+        import xarray as xr
+    except ImportError:
+        raise ReaderError(f"{path}: reading zarr needs xarray and zarr, in the 'io' extra: "
+                          "pip install 'flowkit[io]'") from None
+    try:
+        ds = xr.open_zarr(path)
+    except (OSError, ValueError, KeyError, ImportError) as e:
+        raise ReaderError(f"{path}: not a readable zarr store: {e}") from None
+    return from_xarray(ds, vector_name=vector, source=str(path), **opts)
+
+
+class XarraySource(Source):
+    """A lazily indexed DataArray (a netCDF or zarr variable, a dask array) ordered x, y, z:
+    a slab is computed or read alone, never the whole array."""
+
+    def __init__(self, da, where: str):
+        self.da, self.where = da, where
+
+    def fill(self, out, i0, i1):
+        try:
+            out[...] = self.da.isel({self.da.dims[0]: slice(i0, i1)}).values
+        except (OSError, ValueError, RuntimeError) as e:
+            raise ReaderError(f"{self.where}: variable '{self.da.name}' unreadable: {e}") from None
+
+
+def _stored(da, where) -> Stored:
+    """DataArray ``da`` (dims x, y, z) as a Stored array; chunking from dask or the file."""
+    chunks = da.encoding.get("chunksizes") or da.encoding.get("chunks")
+    if da.chunks:  # dask: the first chunk along each dimension
+        chunks = tuple(c[0] for c in da.chunks)
+    elif chunks is not None:  # the file's, in its own dimension order
+        order = da.encoding.get("original_dims", da.dims)
+        chunks = tuple(chunks[order.index(d)] for d in da.dims) if len(chunks) == da.ndim \
+            else None
+    return Stored(da.shape, da.dtype, XarraySource(da, where), f"{where}:{da.name}", chunks)
 
 
 def netcdf_times(path) -> list[float]:
@@ -145,9 +194,10 @@ def netcdf_times(path) -> list[float]:
     return _with_dataset(path, times)
 
 
-def _with_dataset(path, use):
-    """``use(ds)`` on the netCDF file opened lazily with xarray; a missing xarray or an
-    unreadable file is a ReaderError naming the file."""
+def _with_dataset(path, use, close=True):
+    """``use(ds)`` on the netCDF file opened lazily with xarray (closed after, unless
+    ``close`` is False: arrays read later need it); a missing xarray or an unreadable file is a
+    ReaderError naming the file."""
     try:
         import xarray as xr
     except ImportError:
@@ -156,8 +206,15 @@ def _with_dataset(path, use):
             "pip install 'flowkit[io]'"
         ) from None
     try:
-        with xr.open_dataset(path) as ds:
-            return use(ds)
+        ds = xr.open_dataset(path)
+        try:
+            out = use(ds)
+        except BaseException:
+            ds.close()
+            raise
+        if close:
+            ds.close()
+        return out
     except (OSError, ValueError) as e:
         if isinstance(e, ReaderError):
             raise

@@ -1,0 +1,222 @@
+"""Node arrays as a file stores them: read when first used, in the type the file holds.
+
+A reader hands a Field a ``Stored`` array (shape, dtype, chunking and where it lives) instead of
+reading it: opening a 13 GB snapshot then costs its metadata, ``flowkit info`` prints at once,
+and a trace reads the vector and only the scalars its attributes use.  ``Stored.read()`` reads
+the whole array in slabs along x into one array of its kept type, so that reading takes the
+array's own bytes and a slab, and the memory it needs is checked before anything is allocated.
+
+float32 and float64 arrays stay in the type the file stores (in native byte order): the
+integrator reads float32 nodes and computes in float64, so lines from a float32 file are
+bit-identical to those from its float64 copy (float32 -> float64 is exact) at half the memory.
+Every other type (float16, integers) becomes float64.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+
+KEPT = (np.dtype(np.float32), np.dtype(np.float64))
+SLAB_BYTES = 64 << 20  # what one read of a slab may allocate beside the output
+
+
+class FieldMemoryError(MemoryError):
+    """An array that cannot be held in the memory this machine has free."""
+
+
+def kept_dtype(dtype) -> np.dtype:
+    """The type an array of ``dtype`` is held in: float32 or float64 as stored, else float64."""
+    d = np.dtype(dtype).newbyteorder("=")
+    return d if d in KEPT else np.dtype(np.float64)
+
+
+def as_kept(a) -> np.ndarray:
+    """``a`` as a C-contiguous array of its kept type (no copy when it is one already)."""
+    a = np.asarray(a)
+    return np.ascontiguousarray(a, dtype=kept_dtype(a.dtype))
+
+
+def available_memory() -> int | None:
+    """Bytes this machine can still allocate without swapping (Linux MemAvailable; psutil
+    elsewhere when it is installed; None when neither says)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        import psutil
+    except ImportError:
+        return None
+    return int(psutil.virtual_memory().available)
+
+
+def fmt_bytes(n: float) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if abs(n) < 1000 or unit == "TB":
+            return f"{n:.3g} {unit}" if unit != "B" else f"{int(n)} B"
+        n /= 1000.0
+    return f"{n} B"
+
+
+def check_memory(nbytes: int, what: str) -> None:
+    """Raise FieldMemoryError, naming ``what`` and the sizes, when ``nbytes`` do not fit in
+    the memory available now."""
+    free = available_memory()
+    if free is not None and nbytes > free:
+        raise FieldMemoryError(
+            f"{what} needs {fmt_bytes(nbytes)} of memory, {fmt_bytes(free)} available; "
+            "free memory, or trace a smaller field or a subset of this one"
+        )
+
+
+class Source:
+    """Where a Stored array's values come from: ``fill(out, i0, i1)`` writes the nodes
+    i0:i1 along x into ``out`` (shape (i1 - i0, ny, nz[, 3]), the kept dtype).  Readers
+    subclass it with picklable state (a path and a dataset name, not an open file), so that a
+    Field can travel to another process and read there."""
+
+    def fill(self, out: np.ndarray, i0: int, i1: int) -> None:
+        raise NotImplementedError
+
+
+class InMemory(Source):
+    """An array already in memory (or memory-mapped): a slab is a copy of its rows."""
+
+    def __init__(self, array):
+        self.array = array
+
+    def fill(self, out, i0, i1):
+        out[...] = self.array[i0:i1]
+
+
+class Stacked(Source):
+    """The three components of a vector, each a Stored scalar, as one (nx, ny, nz, 3) array."""
+
+    def __init__(self, parts):
+        self.parts = list(parts)
+
+    def fill(self, out, i0, i1):
+        tmp = np.empty(out.shape[:3], out.dtype)
+        for c, p in enumerate(self.parts):
+            p.source.fill(tmp, i0, i1)
+            out[..., c] = tmp
+
+
+class Flipped(Source):
+    """Another source with the axes ``axes`` (of x, y, z: 0, 1, 2) in reverse order."""
+
+    def __init__(self, inner: Source, nx: int, axes):
+        self.inner, self.nx, self.axes = inner, nx, tuple(axes)
+
+    def fill(self, out, i0, i1):
+        lo, hi = (self.nx - i1, self.nx - i0) if 0 in self.axes else (i0, i1)
+        tmp = np.empty_like(out)
+        self.inner.fill(tmp, lo, hi)
+        out[...] = np.flip(tmp, axis=self.axes)
+
+
+class Stored:
+    """A node array in a file, read on first use (``read``) or slab by slab (``slabs``).
+
+    ``shape`` is (nx, ny, nz) or (nx, ny, nz, 3); ``dtype`` the type it is held in
+    (``kept_dtype`` of ``stored``, the file's own); ``chunks`` the file's chunk shape, in
+    the same index order, when it has one; ``where`` names the file and dataset for messages.
+    """
+
+    def __init__(self, shape, stored, source: Source, where: str, chunks=None):
+        self.shape = tuple(int(n) for n in shape)
+        self.stored = np.dtype(stored)
+        self.dtype = kept_dtype(stored)
+        self.source = source
+        self.where = where
+        self.chunks = None if chunks is None else tuple(int(c) for c in chunks)
+
+    @property
+    def ndim(self) -> int:
+        return len(self.shape)
+
+    @property
+    def nbytes(self) -> int:
+        return int(np.prod(self.shape, dtype=np.int64)) * self.dtype.itemsize
+
+    def slab_rows(self) -> int:
+        """Nodes along x per slab: a chunk's depth where chunked, else SLAB_BYTES worth."""
+        row = max(1, self.nbytes // max(1, self.shape[0]))
+        rows = max(1, SLAB_BYTES // row)
+        if self.chunks:
+            c = self.chunks[0]
+            rows = max(c, rows // c * c)
+        return min(rows, self.shape[0])
+
+    def slabs(self, progress=None):
+        """(i0, i1, slab) along x, each read into an array of its own; ``progress(nbytes)``
+        after each."""
+        step = self.slab_rows()
+        for i0 in range(0, self.shape[0], step):
+            i1 = min(i0 + step, self.shape[0])
+            out = np.empty((i1 - i0, *self.shape[1:]), self.dtype)
+            self.source.fill(out, i0, i1)
+            if progress is not None:
+                progress(out.nbytes)
+            yield i0, i1, out
+
+    def read(self, progress=None) -> np.ndarray:
+        """The whole array (C-contiguous, ``dtype``), its memory checked before it is taken."""
+        check_memory(self.nbytes, f"{self.where}: reading {self.shape} {self.dtype}")
+        out = np.empty(self.shape, self.dtype)
+        step = self.slab_rows()
+        with _progress(self.nbytes, f"reading {self.where}", progress) as done:
+            for i0 in range(0, self.shape[0], step):
+                i1 = min(i0 + step, self.shape[0])
+                self.source.fill(out[i0:i1], i0, i1)
+                done(out[i0:i1].nbytes)
+        return out
+
+    def flipped(self, axes) -> Stored:
+        return Stored(self.shape, self.stored, Flipped(self.source, self.shape[0], axes),
+                      self.where, None)
+
+    @staticmethod
+    def stacked(parts, where: str) -> Stored:
+        """A vector from three Stored scalars of one shape."""
+        stored = np.result_type(*(p.stored for p in parts))
+        return Stored((*parts[0].shape, 3), stored, Stacked(parts), where, None)
+
+    def __repr__(self):
+        return f"Stored({self.where}, shape={self.shape}, dtype={self.dtype})"
+
+
+# reads smaller than this show no progress bar
+PROGRESS_BYTES = 256 << 20
+
+
+class _progress:
+    """A byte counter on stderr (tqdm) for reads of PROGRESS_BYTES or more where stderr is a
+    terminal; ``progress`` (a callable taking bytes) is called as well."""
+
+    def __init__(self, total, label, extra=None):
+        self.bar = None
+        self.extra = extra
+        if total >= PROGRESS_BYTES and sys.stderr.isatty() and not os.environ.get("CI"):
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=label, unit="B", unit_scale=True, leave=False)
+
+    def __enter__(self):
+        return self.update
+
+    def update(self, n):
+        if self.bar is not None:
+            self.bar.update(n)
+        if self.extra is not None:
+            self.extra(n)
+
+    def __exit__(self, *exc):
+        if self.bar is not None:
+            self.bar.close()
