@@ -21,12 +21,13 @@ def run(capsys, *argv):
 
 
 def test_info_on_a_vtk_file(capsys):
-    rc, out, _ = run(capsys, "info", str(DATA / "rect_appended_raw_zlib.vtr"))
+    rc, out, _ = run(capsys, "info", str(DATA / "rect_appended_raw_zlib.vtr"), "--stats")
     assert rc == 0
     assert "grid: rectilinear, shape (4, 3, 5) (60 nodes)" in out
     assert "x: [0, 0.9], spacing 0.1..0.55" in out and "time: 1.5" in out
-    assert "U: vector (3), |U| in [" in out and "T: scalar, range [0, 18.9]" in out
-    assert "cell data not loaded" in out
+    assert "U: vector (3), float64, 1.44 kB, |U| in [" in out
+    assert "T: scalar, float32, 240 B, range [0, 18.9]" in out
+    assert "cell data not loaded" in out and "--stats)" not in out
 
 
 def test_info_reports_nan_and_inf_counts(tmp_path, capsys):
@@ -36,16 +37,36 @@ def test_info_reports_nan_and_inf_counts(tmp_path, capsys):
     T = np.zeros((3, 3, 3))
     T[1, 1, 1] = np.inf
     np.savez(tmp_path / "n.npz", x=x, y=x, z=x, U=U, T=T)
-    rc, out, _ = run(capsys, "info", str(tmp_path / "n.npz"))
+    rc, out, _ = run(capsys, "info", str(tmp_path / "n.npz"), "--stats")
     assert rc == 0 and "|U| in [1.73205, 1.73205]" in out and "3 NaN" in out and "1 inf" in out
 
 
 def test_info_on_the_hotroom_series_lists_snapshots(capsys):
-    rc, out, _ = run(capsys, "info", str(hotroom_path()), "--time", "1200")
+    rc, out, _ = run(capsys, "info", str(hotroom_path()), "--time", "1200", "--stats")
     assert rc == 0
     assert "5 snapshot(s)" in out and "[4] t = 2000" in out
     assert "time: 1200" in out and "grid: uniform, shape (41, 21, 41)" in out
-    assert "spacing 0.25" in out and "T [K]: scalar, range [300, 600]" in out
+    assert "spacing 0.25" in out and "T [K]: scalar, float32, 141 kB, chunks 11x11x21, range [300, 600]" in out
+
+
+def test_info_reads_no_array_data_without_stats(tmp_path, capsys, monkeypatch):
+    """Without --stats, info prints types, sizes and chunking from the metadata alone: no
+    slab of any array is read (every read of array data goes through Source.fill)."""
+    from flowkit.fields import stored
+
+    reads = []
+    monkeypatch.setattr(stored.Source, "fill", lambda *a: reads.append(a))
+    for cls in (stored.InMemory, stored.Stacked, stored.Flipped):
+        monkeypatch.setattr(cls, "fill", lambda *a: reads.append(a))
+    from flowkit.fields.readers import hdf5
+
+    monkeypatch.setattr(hdf5.H5Source, "fill", lambda *a: reads.append(a))
+    rc, out, _ = run(capsys, "info", str(hotroom_path()))
+    assert rc == 0 and not reads
+    assert "U [m/s]: vector (3), float32" in out and "chunks" in out and "range [" not in out
+    assert "--stats)" in out
+    rc, out, _ = run(capsys, "info", str(hotroom_path()), "--stats")
+    assert rc == 0 and reads and "range [" in out
 
 
 def test_info_errors_are_one_line_naming_the_file(tmp_path, capsys):

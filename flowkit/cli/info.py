@@ -1,8 +1,11 @@
 """``flowkit info FILE``: what a field file (or series, or lines file) holds.
 
-Grid kind, shape, bounds and spacing, every array with its range and NaN/inf counts, and the
-reader's notes; for a series (.series, a glob, a multi-snapshot flowkit HDF5 or netCDF file) the
-list of snapshots and times first, then the selected snapshot (default the first).
+Grid kind, shape, bounds and spacing, every array with its type, size, chunking and units, and
+the reader's notes, from the file's metadata alone: no array data is read, so a snapshot of any
+size prints at once.  ``--stats`` adds each array's range and NaN/inf counts, read a slab at a
+time (memory bounded by a slab, progress on a terminal).  For a series (.series, a glob, a
+multi-snapshot flowkit HDF5 or netCDF file) the list of snapshots and times comes first, then
+the selected snapshot (default the first).
 """
 
 from __future__ import annotations
@@ -28,6 +31,9 @@ def register(subparsers) -> None:
     p.add_argument(
         "--data", choices=["point", "cell"], help="VTK files: point data (default) or cell data"
     )
+    p.add_argument("--stats", action="store_true",
+                   help="ranges and NaN/inf counts of every array (reads the data, a slab at a "
+                        "time)")
     # OpenCL devices (the opencl backend's hook: flowkit.integrate.opencl.device)
     p.add_argument("--devices", action="store_true", help="list OpenCL platforms and devices")
     p.set_defaults(func=run)
@@ -43,14 +49,15 @@ def run(args) -> int:
         raise CLIError("flowkit info: give a FILE (or --devices)")
     print(
         describe(
-            args.file, vector=args.vector, snapshot=args.snapshot, time=args.time, data=args.data
+            args.file, vector=args.vector, snapshot=args.snapshot, time=args.time, data=args.data,
+            stats=args.stats,
         )
     )
     return 0
 
 
-def describe(file, vector=None, snapshot=None, time=None, data=None) -> str:
-    """The text ``flowkit info`` prints."""
+def describe(file, vector=None, snapshot=None, time=None, data=None, stats=False) -> str:
+    """The text ``flowkit info`` prints (``stats``: with ranges and NaN/inf counts)."""
     from ..fields.readers import HDF5_EXT, NETCDF_EXT, load_field, load_series, root_format
     from ..fields.readers._common import select_snapshot
 
@@ -73,7 +80,8 @@ def describe(file, vector=None, snapshot=None, time=None, data=None) -> str:
                 file = series[i][1]
             head.append("")
     field = load_field(file, vector, **opts)
-    return "\n".join([*head, field.summary()])
+    tail = [] if stats else [f"(ranges and NaN counts: flowkit info {file} --stats)"]
+    return "\n".join([*head, field.summary(stats=stats), *tail])
 
 
 def _name(ref) -> str:
