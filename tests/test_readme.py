@@ -56,7 +56,7 @@ def test_readme_python_example_runs(tmp_path, monkeypatch):
 
 def test_readme_flowkit_lines_run(tmp_path, monkeypatch, capsys, display):
     cmds = readme_commands()
-    assert [c[0] for c in cmds] == ["info", "trace", "trace", "trace", "info", "render", "render",
+    assert [c[0] for c in cmds] == ["info", "info", "trace", "trace", "trace", "info", "render", "render",
                                     "render", "scene", "view", "view", "trace", "bench",
                                     "compile"], cmds
     (tmp_path / "run.vtu").symlink_to((SHARED / "hotroom_t2000.vtu").resolve())
@@ -89,7 +89,8 @@ def test_readme_flowkit_lines_run(tmp_path, monkeypatch, capsys, display):
             lines = __import__("flowkit").read_lines("lines.h5")
             assert len(lines) == 8 ** 3 and {"speed", "T", "time"} <= set(lines.point_data)
     assert "grid: uniform, shape (41, 21, 41)" in outputs["info"][0]
-    info = outputs["info"][1]
+    assert "range [" not in outputs["info"][0] and "range [300" in outputs["info"][1]  # --stats
+    info = outputs["info"][2]
     assert "lines: 512 " in info and re.search(r"^ +T +float64", info, re.MULTILINE)
     assert Image.open("halo.png").size == (1920, 1080) and Image.open("overview.png").size
     reasons = __import__("flowkit").read_lines("even.h5").line_data["reason"]

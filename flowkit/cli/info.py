@@ -13,6 +13,8 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
+import numpy as np
+
 from . import CLIError
 
 
@@ -80,8 +82,15 @@ def describe(file, vector=None, snapshot=None, time=None, data=None, stats=False
                 file = series[i][1]
             head.append("")
     field = load_field(file, vector, **opts)
-    tail = [] if stats else [f"(ranges and NaN counts: flowkit info {file} --stats)"]
-    return "\n".join([*head, field.summary(stats=stats), *tail])
+    if not stats:
+        tail = [f"(ranges and NaN counts: flowkit info {file} --stats)"]
+        return "\n".join([*head, field.summary(stats=False), *tail])
+    from ..fields.stored import progress_bar
+
+    total = sum(field.scalars.meta(n).nbytes for n in field.scalars) + field.dtype.itemsize * 3 \
+        * int(np.prod(field.grid.shape))
+    with progress_bar(total, "statistics") as done:
+        return "\n".join([*head, field.summary(stats=True, progress=done)])
 
 
 def _name(ref) -> str:

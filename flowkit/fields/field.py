@@ -247,6 +247,8 @@ def _slabs(a, progress):
     step = max(1, (64 << 20) // max(1, a[:1].nbytes))
     for i0 in range(0, a.shape[0], step):
         yield a[i0:i0 + step]
+        if progress is not None:
+            progress(a[i0:i0 + step].nbytes)
 
 
 def _statistics(name: str, a, is_vector: bool, progress=None) -> str:

@@ -171,7 +171,7 @@ class Stored:
         check_memory(self.nbytes, f"{self.where}: reading {self.shape} {self.dtype}")
         out = np.empty(self.shape, self.dtype)
         step = self.slab_rows()
-        with _progress(self.nbytes, f"reading {self.where}", progress) as done:
+        with progress_bar(self.nbytes, f"reading {self.where}", progress) as done:
             for i0 in range(0, self.shape[0], step):
                 i1 = min(i0 + step, self.shape[0])
                 self.source.fill(out[i0:i1], i0, i1)
@@ -196,9 +196,9 @@ class Stored:
 PROGRESS_BYTES = 256 << 20
 
 
-class _progress:
-    """A byte counter on stderr (tqdm) for reads of PROGRESS_BYTES or more where stderr is a
-    terminal; ``progress`` (a callable taking bytes) is called as well."""
+class progress_bar:
+    """A byte counter on stderr (tqdm) for work on PROGRESS_BYTES or more where stderr is a
+    terminal; ``extra`` (a callable taking bytes) is called as well."""
 
     def __init__(self, total, label, extra=None):
         self.bar = None
