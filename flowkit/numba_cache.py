@@ -64,13 +64,23 @@ def ensure_location() -> str | None:
     """Make sure numba has a writable cache folder (see above); returns the fallback folder
     when one was needed, else None.  Call before any cached kernel is defined."""
     from numba import config
-    from numba.misc.appdirs import AppDirs
 
+    from .numba_private import AVAILABLE, user_cache_dir
+
+    uid = os.getuid() if hasattr(os, "getuid") else "user"
+    if not AVAILABLE and not config.CACHE_DIR:
+        # code compiled without the accelerators kept apart from code compiled with them:
+        # numba's cache index does not tell the two apart, and a helper compiled without a
+        # CPython wrapper cannot stand in for one that has it
+        home = user_cache_dir()
+        home = Path(home) if home and _writable(Path(home)) else Path(tempfile.gettempdir())
+        config.CACHE_DIR = str(home / f"flowkit-plain-{uid}")
+        return config.CACHE_DIR
     if config.CACHE_DIR or _writable(PACKAGE / "integrate" / "__pycache__"):
         return None
-    if _writable(Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)):
+    home = user_cache_dir()
+    if home and _writable(Path(home)):
         return None
-    uid = os.getuid() if hasattr(os, "getuid") else "user"
     config.CACHE_DIR = str(Path(tempfile.gettempdir()) / f"flowkit-numba-{uid}")
     return config.CACHE_DIR
 
@@ -80,12 +90,12 @@ def in_disk_cache(dispatcher, sig=None, having=None) -> bool:
     for ``sig`` (argument types) or, without one, for any signature (with an argument of type
     ``having``, when given): its index read as numba's ``Cache.load_overload`` reads it; False
     where that cannot be read."""
-    try:
-        cache = dispatcher._cache
-        key = cache._index_key(sig, dispatcher.targetctx.codegen())
-        index = cache._cache_file._load_index()
-        if sig is not None:
-            return key in index
-        return any(k[1:] == key[1:] and (having is None or having in k[0]) for k in index)
-    except Exception:  # noqa: BLE001 (numba internals: then the caller compiles as usual)
+    from .numba_private import cache_index
+
+    found = cache_index(dispatcher, sig)
+    if found is None:
         return False
+    key, index = found
+    if sig is not None:
+        return key in index
+    return any(k[1:] == key[1:] and (having is None or having in k[0]) for k in index)

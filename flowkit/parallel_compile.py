@@ -78,13 +78,16 @@ def _python() -> str | None:
 
 
 def enabled() -> bool:
-    return (os.environ.get("FLOWKIT_PARALLEL_COMPILE", "1") != "0" and _cores() > 1
-            and _python() is not None)
+    from .numba_private import AVAILABLE  # (turns are taken by the accelerators' dispatcher)
+
+    return (AVAILABLE and os.environ.get("FLOWKIT_PARALLEL_COMPILE", "1") != "0"
+            and _cores() > 1 and _python() is not None)
 
 
 def _writes_cache(dispatcher) -> bool:
-    cache = getattr(dispatcher, "_cache", None)
-    path = getattr(cache, "cache_path", None)
+    from .numba_private import cache_path
+
+    path = cache_path(dispatcher)
     return path is not None and os.access(path, os.W_OK)
 
 
@@ -157,8 +160,8 @@ def turn(dispatcher, sig):
 def field_array(dtype: str = "float64"):
     """numba's type of a field's node array (4-D, C-contiguous) of ``dtype``."""
     import numpy as np
+    from numba import from_dtype
     from numba.core import types
-    from numba.np.numpy_support import from_dtype
 
     return types.Array(from_dtype(np.dtype(dtype)), 4, "C")
 

@@ -216,5 +216,6 @@ def recorded() -> tuple[int, float]:
 def cache_location() -> str:
     """Where numba caches flowkit's kernels in this process (docs/integrator.md says why)."""
     from .integrate import kernel
+    from .numba_private import cache_path
 
-    return kernel._advance_lines._cache._cache_path
+    return cache_path(kernel._advance_lines) or "(unknown)"

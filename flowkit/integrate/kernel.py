@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 
 from ..fields.interp import locate_axis, prefetch_cell, prefetch_corners
-from ..jit import helper, inline, lean
+from ..jit import helper, inline, kernel
 from ..jit import prefetch as _prefetch  # noqa: F401 (lanes.py, benchmarks)
 from .reasons import Reason
 
@@ -777,7 +777,7 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, kexp, fo,
 # NRT, each array handed to an inlined helper in the step loop cost an atomic increment and
 # decrement, a fifth of a plain rk4 step's time (measured); NRT cannot allocate, hence the
 # scratch arrays from _advance_range
-@njit(cache=True, nogil=True, _nrt=False, error_model="numpy", **lean)
+@kernel(nogil=True, error_model="numpy")
 def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv,
                    vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n,
                    k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd, coef0, cf0, ci0):

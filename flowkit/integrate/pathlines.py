@@ -32,11 +32,10 @@ import math
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from ..fields import Field
 from ..fields.interp import locate_axis, trilinear_vector
-from ..jit import inline, lean
+from ..jit import inline, kernel
 from ..lines import Lines
 from . import attributes as _attributes
 from .kernel import (
@@ -119,7 +118,7 @@ def _axis(c, period, inv, x):
     return i, t
 
 
-@njit(cache=True, _nrt=False, **lean)
+@kernel()
 def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
     """(1 - a) v0 + a v1 at (x, y, z) into k[row, 0:3] and the speed into k[row, 3];
     returns False for NaN data or a NaN position."""
@@ -148,7 +147,7 @@ def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
 # machine).  Without NRT (no reference counting in the step loop, as kernel._advance_lines; nothing
 # allocated here: the scratch arrays come from _range) and without the GIL, so that threads run
 # ranges side by side (threads.run_ranges).
-@njit(cache=True, nogil=True, _nrt=False, **lean)
+@kernel(nogil=True)
 def _lines(start, stop, active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
            mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, k, Q, yt, y,
            y1):

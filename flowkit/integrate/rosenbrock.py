@@ -32,10 +32,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from ..fields import Field
-from ..jit import inline, lean
+from ..jit import inline, kernel
 from ..lines import Lines
 from . import kernel as K
 from .kernel import _dense, _fc, _norm3, _put, _relocate, _root
@@ -205,7 +204,7 @@ def _event(y, y1, k, hs, ns, cf, lim_dep, d, qd, q):
 
 # without NRT (no reference counting of the arrays handed to the helpers; nothing allocated
 # here: the scratch arrays come from _range)
-@njit(cache=True, nogil=True, _nrt=False, **lean)
+@kernel(nogil=True)
 def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kexp, fo,
            io, si, out_p, out_par, out_n, k, kk, coef, cf, ci, y, yt, y1, J, W, Wi, g, u, rhs, qd):
     """Trace the lines start..stop-1 one after the other into out_*[l]; their counts and
