@@ -154,7 +154,7 @@ def run(label: str, args: list[str]) -> dict:
         out = tmp.name
     t = time.perf_counter()
     proc = subprocess.run([sys.executable, __file__, *args[:1], out, *args[1:]],
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, check=False)
     wall = time.perf_counter() - t
     res = json.loads(Path(out).read_text()) if Path(out).stat().st_size else {"rc": "crashed"}
     Path(out).unlink()

@@ -144,7 +144,7 @@ def test_a_field_too_large_for_memory_is_a_named_error_and_leaves_no_file(tmp_pa
     assert err.count("\n") == 1 and str(path) in err and "/vectors/U" in err
     assert "needs 96 kB of memory, 500 B available" in err
     with pytest.raises(FieldMemoryError, match="abc.h5"):
-        load_field(path).vector
+        _ = load_field(path).vector
     # info reads nothing, so it still works
     assert main(["info", str(path)]) == 0
 
