@@ -244,6 +244,15 @@ def test_source_contains_only_what_the_run_needs():
     assert "e3 += " in _src("dop853") and "e3 += " not in plain  # DOP853's second estimate only
 
 
+def test_the_stiffness_test_takes_its_constants_from_python(monkeypatch):
+    from flowkit.integrate import kernel as K
+
+    src = _src(stiff_stage=5)
+    assert "hlam > 3.25)" in src and f">= {K.STIFF_STEPS})" in src
+    monkeypatch.setattr(K, "HLAMBDA_STIFF", 2.875)
+    assert "hlam > 2.875)" in _src(stiff_stage=5)
+
+
 def test_stages_are_the_tableau_literals():
     m = METHODS["dopri5"]
     src = _src()

@@ -117,7 +117,13 @@ from .schema import (  # noqa: F401
     S_Y,
     S_Y0,
 )
-from .stiffness import NONSTIFF_RESET, STIFF_STEPS, dp5_hlambda, stiff_update  # noqa: F401 (CL)
+from .stiffness import (  # noqa: F401 (the constants: the OpenCL template reads them here)
+    HLAMBDA_STIFF,
+    NONSTIFF_RESET,
+    STIFF_STEPS,
+    dp5_hlambda,
+    stiff_update,
+)
 from .threads import run_ranges
 
 # P_CROSS (cell-aware, adaptive): a step the controller wants longer than the cell cap is tried
