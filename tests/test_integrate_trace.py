@@ -307,8 +307,8 @@ def test_typical_speed_is_kept_with_the_vector_array_it_was_sampled_from():
     from flowkit.integrate import trace as T
 
     f = _uniform(U=(2.0, 0.0, 0.0))
-    assert T._typical_speed(f) == 2.0
+    assert T.typical_speed(f) == 2.0
     f.vector[...] = 5.0  # changed in place: not noticed (documented)
-    assert T._typical_speed(f) == 2.0
+    assert T.typical_speed(f) == 2.0
     f.vector = np.full_like(f.vector, 3.0)  # a new array
-    assert T._typical_speed(f) == pytest.approx(np.sqrt(27.0), rel=1e-15)
+    assert T.typical_speed(f) == pytest.approx(np.sqrt(27.0), rel=1e-15)

@@ -86,6 +86,7 @@ from .schema import (
     S_TAU,
 )
 from .threads import run_ranges
+from .trace import typical_speed
 
 # the rows of a pathline (schema.py): the streamline kernel's leading columns, read and written
 # by kernel._load_state / _save_state (time is the parameter, arc length the dependent one), and
@@ -470,7 +471,7 @@ class _Setup:
                 have = ", ".join(list(POINT_ATTRIBUTES) + sorted(f.scalars))
                 raise KeyError(f"{f.source}: unknown pathline attribute '{a}' (available: {have})")
         ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
-        vtyp = f.typical_speed()
+        vtyp = typical_speed(f)  # sampled: the full median costs 3x a float32 field's memory
         cross = g.min_cell_size / (vtyp if vtyp > 0 else 1.0)
         fo = np.zeros(NFO)
         fo[O_RTOL:O_RTOL + 3] = opts.rtol
