@@ -258,15 +258,17 @@ def _statistics(name: str, a, is_vector: bool, progress=None) -> str:
     lo = np.full(4, np.inf)
     hi = np.full(4, -np.inf)
     for slab in _slabs(a, progress):
-        n_nan += int(np.isnan(slab).sum())
-        n_inf += int(np.isinf(slab).sum())
+        finite = bool(np.isfinite(slab).all())  # (the common case: no masked copies)
+        if not finite:
+            n_nan += int(np.isnan(slab).sum())
+            n_inf += int(np.isinf(slab).sum())
         if is_vector:
             mag = np.sqrt(np.einsum("...i,...i->...", slab, slab, dtype=np.float64))
             cols = [mag, *(slab[..., i] for i in range(3))]
         else:
             cols = [slab]
         for i, c in enumerate(cols):
-            c = c[np.isfinite(c)]
+            c = c if finite else c[np.isfinite(c)]
             if c.size:
                 lo[i], hi[i] = min(lo[i], float(c.min())), max(hi[i], float(c.max()))
     if is_vector:
