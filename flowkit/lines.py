@@ -67,9 +67,23 @@ class Lines:
         return self.points.shape[0]
 
     @property
-    def lengths(self) -> np.ndarray:
-        """Vertex count per line."""
+    def n_vertices(self) -> np.ndarray:
+        """Vertex count of each line, (L,) int64 (``arc_length()`` gives their lengths)."""
         return np.diff(self.offsets)
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """Vertex count of each line: the same as ``n_vertices``, the older name."""
+        return self.n_vertices
+
+    def arc_length(self) -> np.ndarray:
+        """Arc length of each line along its vertices, (L,) float64 (0 for a line of one
+        vertex; a segment with a non-finite end counts 0)."""
+        d = np.diff(self.points.astype(np.float64), axis=0)
+        seg = np.sqrt(np.einsum("ij,ij->i", d, d))
+        line = self.line_index()
+        same = (line[1:] == line[:-1]) & np.isfinite(seg)
+        return np.bincount(line[1:][same], weights=seg[same], minlength=len(self))
 
     def line_index(self) -> np.ndarray:
         """Line number of every vertex, (N,)."""
@@ -103,11 +117,118 @@ class Lines:
         for i in range(len(self)):
             yield self[i]
 
+    def where(self, mask=None, *, reason=None) -> Lines:
+        """The lines selected by ``mask`` (a boolean per line) and/or by ``reason``: a name as
+        ``flowkit info`` prints it ("max_length", "out_of_domain", ...), a ``Reason``, or a list
+        of them; a line traced in both directions matches when either end stopped so."""
+        keep = np.ones(len(self), bool)
+        if mask is not None:
+            m = np.asarray(mask)
+            if m.dtype != bool or m.shape != (len(self),):
+                raise ValueError(f"Lines.where: mask must be {len(self)} booleans (one per "
+                                 f"line), got {m.dtype} of shape {m.shape}")
+            keep &= m
+        if reason is not None:
+            codes = _reason_codes(reason)
+            hit = np.isin(self.line_data["reason"], codes)
+            if "reason_backward" in self.line_data:
+                hit |= np.isin(self.line_data["reason_backward"], codes)
+            keep &= hit
+        return self[keep]
+
     def line_points(self, i: int) -> np.ndarray:
-        return self.points[self.offsets[i]:self.offsets[i + 1]]
+        """The vertices of line ``i``, (n, 3) (a view)."""
+        return self.points[self.offsets[self._line(i)]:self.offsets[self._line(i) + 1]]
 
     def line_attribute(self, name: str, i: int) -> np.ndarray:
+        """Per-vertex attribute ``name`` along line ``i`` (a view): ``lines[i]`` gives every
+        attribute of one line at once."""
+        if not isinstance(name, str):
+            raise TypeError(f"line_attribute(name, i): name is an attribute's name (one of "
+                            f"{', '.join(self.point_data) or 'none'}), got {name!r}")
+        if name not in self.point_data:
+            raise KeyError(f"no per-vertex attribute '{name}' (available: "
+                           f"{', '.join(self.point_data) or 'none'})")
+        i = self._line(i)
         return self.point_data[name][self.offsets[i]:self.offsets[i + 1]]
+
+    def _line(self, i) -> int:
+        if not isinstance(i, (int, np.integer)):
+            raise TypeError(f"a line number is an integer, got {i!r}")
+        j = int(i) + (len(self) if i < 0 else 0)
+        if not 0 <= j < len(self):
+            raise IndexError(f"line {i} out of range for {len(self)} lines")
+        return j
+
+    # -- what it holds, in a few lines --------------------------------------------------
+    def __repr__(self) -> str:
+        n = self.n_vertices
+        out = [f"<Lines: {len(self)} lines, {self.n_points} vertices ({self.points.dtype})"
+               + (f", {n.min()}-{n.max()} per line" if len(self) else "")]
+        if self.n_points:
+            out.append("  bounds: " + "  ".join(f"{a} [{lo:.6g}, {hi:.6g}]"
+                                                 for a, (lo, hi) in zip("xyz", self.bounds())))
+        units = self.units
+        if self.point_data:
+            out.append("  per vertex: " + ", ".join(
+                f"{k} {v.dtype}" + (f" x{v.shape[1]}" if v.ndim > 1 else "")
+                + (f" [{units[k]}]" if k in units else "") for k, v in self.point_data.items()))
+        if self.line_data:
+            out.append(f"  per line: {', '.join(self.line_data)}")
+        for key, title in (("reason", "reasons"), ("reason_backward", "reasons backward")):
+            if key in self.line_data and len(self):
+                out.append(f"  {title}: " + _reason_counts(self.line_data[key]))
+        return "\n".join(out) + ">"
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<pre>{html.escape(repr(self))}</pre>"
+
+    # -- to other tools -----------------------------------------------------------------
+    def to_pandas(self):
+        """One row per vertex: ``line`` and ``vertex`` (its index along the line), x, y, z,
+        every per-vertex attribute (a k-component one as NAME_0 ... NAME_k-1, a 3-component
+        one as NAME_x, NAME_y, NAME_z) and every per-line value repeated on its vertices
+        (``reason`` as its name).  Needs pandas."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("Lines.to_pandas needs pandas: pip install pandas") from None
+        line = self.line_index()
+        cols = {"line": line, "vertex": np.arange(self.n_points) - self.offsets[line]}
+        cols.update({c: self.points[:, i] for i, c in enumerate("xyz")})
+        for k, v in self.point_data.items():
+            if v.ndim == 1:
+                cols[k] = v
+            else:
+                names = "xyz" if v.shape[1] == 3 else [str(j) for j in range(v.shape[1])]
+                cols.update({f"{k}_{c}": v[:, j] for j, c in enumerate(names)})
+        for k, v in self.line_data.items():
+            if k in cols:
+                continue
+            cols[k] = _reason_labels(v[line]) if k.startswith("reason") else v[line]
+        return pd.DataFrame(cols)
+
+    def to_xarray(self):
+        """The CF contiguous ragged array the lines file holds (dimensions ``obs`` for the
+        vertices and ``trajectory`` for the lines, ``rowSize`` the vertex count of each):
+        ``to_dataframe`` of its per-vertex variables then gives one row per vertex.
+        Needs xarray."""
+        try:
+            import xarray as xr
+        except ImportError:
+            raise ImportError("Lines.to_xarray needs xarray: pip install xarray") from None
+        units = self.units
+        data = {"rowSize": ("trajectory", self.n_vertices, {"sample_dimension": "obs"})}
+        data.update({c: ("obs", self.points[:, i]) for i, c in enumerate("xyz")})
+        for k, v in self.point_data.items():
+            dims = ("obs",) if v.ndim == 1 else ("obs", f"{k}_component")
+            data[k] = (dims, v, {"units": units[k]} if k in units else {})
+        for k, v in self.line_data.items():
+            data[k] = ("trajectory", v)
+        attrs = {k: v for k, v in self.attrs.items() if isinstance(v, (str, int, float))}
+        return xr.Dataset(data, attrs={**attrs, "featureType": "trajectory"})
 
     @staticmethod
     def concatenate(parts: list[Lines]) -> Lines:
@@ -145,6 +266,34 @@ class Lines:
         if p.size == 0:
             return np.zeros((3, 2))
         return np.stack([p.min(axis=0), p.max(axis=0)], axis=1)
+
+
+def _reason_codes(reason) -> list[int]:
+    from .integrate.reasons import REASON_NAMES, Reason
+
+    out = []
+    for r in ([reason] if isinstance(reason, (str, int, np.integer)) else list(reason)):
+        if isinstance(r, str):
+            if r.lower() not in REASON_NAMES:
+                raise ValueError(f"unknown reason '{r}'; reasons: {', '.join(REASON_NAMES)}")
+            out.append(REASON_NAMES.index(r.lower()))
+        else:
+            out.append(int(Reason(int(r))))
+    return out
+
+
+def _reason_labels(codes: np.ndarray) -> np.ndarray:
+    from .integrate.reasons import REASON_NAMES
+
+    names = np.array(REASON_NAMES + ["unknown"])
+    c = np.asarray(codes, np.int64)
+    return names[np.where((c >= 0) & (c < len(REASON_NAMES)), c, len(REASON_NAMES))]
+
+
+def _reason_counts(codes: np.ndarray) -> str:
+    labels, n = np.unique(_reason_labels(codes), return_counts=True)
+    order = np.argsort(-n, kind="stable")
+    return ", ".join(f"{labels[i]} {n[i]}" for i in order)
 
 
 def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:

@@ -204,8 +204,13 @@ class Field:
         return "\n".join(lines)
 
     def __repr__(self):
-        return f"<Field {self.source}: {self.grid.shape}, {self.vector_name} {self.dtype}, " \
-               f"scalars: {', '.join(self.scalars) or 'none'}>"
+        """The summary ``flowkit info`` prints, from the metadata alone (no data is read)."""
+        return f"<{self.summary(stats=False)}>"
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<pre>{html.escape(repr(self))}</pre>"
 
 
 

@@ -73,7 +73,11 @@ class LinesFileError(ValueError):
 
 def write_lines(lines: Lines, path, *, position_dtype="float32", compression="gzip",
                 attrs=None) -> Path:
-    """Write ``lines`` to ``path`` atomically; ``attrs`` are added to ``lines.attrs``."""
+    """Write ``lines`` to ``path`` atomically; ``attrs`` are added to ``lines.attrs``.
+
+    Positions are stored as ``position_dtype``: float32 by default (half the file; 7 digits,
+    finer than any grid's interpolation error), "float64" to read back exactly the vertices
+    written (``Lines.equals`` with no tolerance).  Attributes keep their own types."""
     writer = LinesWriter.like(
         lines, path, attrs={**lines.attrs, **(attrs or {})}, position_dtype=position_dtype,
         compression=compression,

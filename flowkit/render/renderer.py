@@ -560,15 +560,18 @@ class LineRenderer:
         return np.frombuffer(data, np.uint8).reshape(h, w, 4)[::-1].copy()
 
 
-def render_lines(lines: Lines, style: Style | str | os.PathLike, size=(1920, 1080),
-                 camera: Camera | None = None, ctx: moderngl.Context | None = None,
-                 strips: str = "vertex", overlays: bool = False) -> np.ndarray:
-    """Render ``lines`` with ``style`` (a Style or a TOML path) to an (H, W, 4) uint8 RGBA array.
-    ``camera`` overrides the style's camera.  Uses a headless EGL context unless ``ctx`` is given.
-    ``strips``: "vertex" or "geometry" shader stage builds the strips (see LineRenderer).
-    ``overlays``: draw the style's legend and annotations (``LineRenderer.overlay``).
-    To draw the same lines many times, keep a ``LineRenderer``."""
-    style = _as_style(style)
+def render_lines(lines: Lines, style: Style | str | os.PathLike | None = None,
+                 size=(1920, 1080), camera: Camera | None = None,
+                 ctx: moderngl.Context | None = None, strips: str = "vertex",
+                 overlays: bool = False) -> np.ndarray:
+    """Render ``lines`` with ``style`` (a Style or a TOML path; None: ``default_style`` for the
+    lines' attributes, as ``flowkit render`` without ``--style``) to an (H, W, 4) uint8 RGBA
+    array.  ``camera`` overrides the style's camera.  Uses a headless EGL context unless ``ctx``
+    is given.  ``strips``: "vertex" or "geometry" shader stage builds the strips (see
+    LineRenderer).  ``overlays``: draw the style's legend and annotations
+    (``LineRenderer.overlay``).  To draw the same lines many times, keep a ``LineRenderer``."""
+    style = default_style(list(lines.point_data), lines.bounds()) if style is None \
+        else _as_style(style)
     with LineRenderer(lines, ctx, strips=strips) as r:
         return r.render(style, size, camera, overlays)
 
