@@ -11,6 +11,7 @@ if numba_cache.IN_WORKING_TREE:  # edited sources: no stale compiled kernels (se
 from . import datasets  # flowkit.datasets.hotroom() after a plain `import flowkit`
 from .fields import Field, Grid
 from .integrate.options import TraceOptions
+from .integrate.sample import sample
 from .integrate.trace import trace as _trace_points
 from .integrate.trace import trace_to_file
 from .io.lines_h5 import read_lines, write_lines
@@ -33,4 +34,4 @@ def trace(field, seeds, options=None, *, backend="numba", **kw) -> Lines:
 
 
 __all__ = ["Field", "Grid", "Lines", "TraceOptions", "__version__", "datasets", "read_lines",
-           "trace", "trace_to_file", "write_lines"]
+           "sample", "trace", "trace_to_file", "write_lines"]

@@ -56,7 +56,8 @@ def test_readme_python_example_runs(tmp_path, monkeypatch):
 
 def test_readme_flowkit_lines_run(tmp_path, monkeypatch, capsys, display):
     cmds = readme_commands()
-    assert [c[0] for c in cmds] == ["info", "info", "trace", "trace", "trace", "info", "render", "render",
+    assert [c[0] for c in cmds] == ["info", "info", "trace", "trace", "trace", "info", "sample",
+                                    "render", "render",
                                     "render", "scene", "view", "view", "trace", "bench",
                                     "compile"], cmds
     (tmp_path / "run.vtu").symlink_to((SHARED / "hotroom_t2000.vtu").resolve())
