@@ -186,6 +186,20 @@ class Lines:
         return f"<pre>{html.escape(repr(self))}</pre>"
 
     # -- to other tools -----------------------------------------------------------------
+    def to_pyvista(self):
+        """A ``pyvista.PolyData`` of polylines, attributes as point and cell data (needs
+        pyvista: ``flowkit.io.pyvista_io``)."""
+        from .io.pyvista_io import lines_to_pyvista
+
+        return lines_to_pyvista(self)
+
+    @classmethod
+    def from_pyvista(cls, poly) -> Lines:
+        """Lines from a ``pyvista.PolyData`` of polylines, e.g. PyVista's ``streamlines()``."""
+        from .io.pyvista_io import lines_from_pyvista
+
+        return lines_from_pyvista(poly)
+
     def to_pandas(self):
         """One row per vertex: ``line`` and ``vertex`` (its index along the line), x, y, z,
         every per-vertex attribute (a k-component one as NAME_0 ... NAME_k-1, a 3-component
