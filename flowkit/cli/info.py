@@ -13,8 +13,6 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
-import numpy as np
-
 from . import CLIError
 
 
@@ -87,8 +85,7 @@ def describe(file, vector=None, snapshot=None, time=None, data=None, stats=False
         return "\n".join([*head, field.summary(stats=False), *tail])
     from ..fields.stored import progress_bar
 
-    total = sum(field.scalars.meta(n).nbytes for n in field.scalars) + field.dtype.itemsize * 3 \
-        * int(np.prod(field.grid.shape))
+    total = sum(a.nbytes for a in field.array_meta().values())
     with progress_bar(total, "statistics") as done:
         return "\n".join([*head, field.summary(stats=True, progress=done)])
 

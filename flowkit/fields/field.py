@@ -176,6 +176,11 @@ class Field:
         """Every array by name, the vector first (each read from its file if it is not yet)."""
         return {self.vector_name: self.vector, **self.scalars}
 
+    def array_meta(self) -> dict:
+        """Every array by name, the vector first, as it is held now: in memory, or its
+        ``Stored`` handle (shape, dtype, nbytes, chunks) where it is not read yet."""
+        return {self.vector_name: self._vector, **{n: self.scalars.meta(n) for n in self.scalars}}
+
     def summary(self, stats: bool = True, progress=None) -> str:
         """What ``flowkit info`` prints: grid, arrays (type, size, chunking, units) and notes;
         with ``stats`` each array's range and NaN/inf counts too, computed slab by slab (an
@@ -190,9 +195,7 @@ class Field:
         if self.length_units:
             lines.append(f"lengths in {self.length_units}")
         lines.append("arrays (point data):")
-        metas = {self.vector_name: self._vector,
-                 **{n: self.scalars.meta(n) for n in self.scalars}}
-        for name, a in metas.items():
+        for name, a in self.array_meta().items():
             unit = f" [{self.units[name]}]" if self.units.get(name) else ""
             is_vector = name == self.vector_name
             line = f"  {name}{unit}: {'vector (3)' if is_vector else 'scalar'}, {_storage(a)}"
@@ -213,11 +216,11 @@ class Field:
         return f"<pre>{html.escape(repr(self))}</pre>"
 
 
-
 # the vector: read from its file on first use (a dataclass field whose attribute is a property,
 # so that the generated __init__ and dataclasses.replace go through the setter)
 Field.vector = property(Field._get_vector, Field._set_vector,
                         doc="The vector node array, read from its file on first use.")
+
 
 def date_of(seconds: float, origin: str) -> str:
     """The date ``seconds`` after ``origin`` (an ISO date, ``Field.time_origin``), to the
@@ -243,26 +246,13 @@ def _storage(a) -> str:
     return text
 
 
-def _slabs(a, progress):
-    """(slab) along x of an in-memory array or a Stored one, each a bounded piece."""
-    if isinstance(a, Stored):
-        for _, _, slab in a.slabs(progress):
-            yield slab
-        return
-    step = max(1, (64 << 20) // max(1, a[:1].nbytes))
-    for i0 in range(0, a.shape[0], step):
-        yield a[i0:i0 + step]
-        if progress is not None:
-            progress(a[i0:i0 + step].nbytes)
-
-
 def _statistics(name: str, a, is_vector: bool, progress=None) -> str:
     """Range (the magnitude's and each component's for a vector) and NaN/inf counts, over
     slabs: memory bounded by a slab whatever the array's size."""
     n_nan = n_inf = 0
     lo = np.full(4, np.inf)
     hi = np.full(4, -np.inf)
-    for slab in _slabs(a, progress):
+    for slab in Stored.of(a).slabs(progress):
         finite = bool(np.isfinite(slab).all())  # (the common case: no masked copies)
         if not finite:
             n_nan += int(np.isnan(slab).sum())

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import sys
+from abc import ABC, abstractmethod
 
 import numpy as np
 
@@ -75,14 +76,15 @@ def check_memory(nbytes: int, what: str) -> None:
         )
 
 
-class Source:
+class Source(ABC):
     """Where a Stored array's values come from: ``fill(out, i0, i1)`` writes the nodes
     i0:i1 along x into ``out`` (shape (i1 - i0, ny, nz[, 3]), the kept dtype).  Readers
     subclass it with picklable state (a path and a dataset name, not an open file), so that a
     Field can travel to another process and read there."""
 
+    @abstractmethod
     def fill(self, out: np.ndarray, i0: int, i1: int) -> None:
-        raise NotImplementedError
+        """Write the nodes i0:i1 along x into ``out``."""
 
 
 class InMemory(Source):
@@ -154,29 +156,34 @@ class Stored:
             rows = max(c, rows // c * c)
         return min(rows, self.shape[0])
 
+    def _ranges(self):
+        step, n = self.slab_rows(), self.shape[0]
+        return ((i0, min(i0 + step, n)) for i0 in range(0, n, step))
+
     def slabs(self, progress=None):
-        """(i0, i1, slab) along x, each read into an array of its own; ``progress(nbytes)``
-        after each."""
-        step = self.slab_rows()
-        for i0 in range(0, self.shape[0], step):
-            i1 = min(i0 + step, self.shape[0])
+        """Slabs along x, each read into an array of its own; ``progress(nbytes)`` after
+        each."""
+        for i0, i1 in self._ranges():
             out = np.empty((i1 - i0, *self.shape[1:]), self.dtype)
             self.source.fill(out, i0, i1)
             if progress is not None:
                 progress(out.nbytes)
-            yield i0, i1, out
+            yield out
 
     def read(self, progress=None) -> np.ndarray:
         """The whole array (C-contiguous, ``dtype``), its memory checked before it is taken."""
         check_memory(self.nbytes, f"{self.where}: reading {self.shape} {self.dtype}")
         out = np.empty(self.shape, self.dtype)
-        step = self.slab_rows()
         with progress_bar(self.nbytes, f"reading {self.where}", progress) as done:
-            for i0 in range(0, self.shape[0], step):
-                i1 = min(i0 + step, self.shape[0])
+            for i0, i1 in self._ranges():
                 self.source.fill(out[i0:i1], i0, i1)
                 done(out[i0:i1].nbytes)
         return out
+
+    @staticmethod
+    def of(a) -> Stored:
+        """``a`` itself if it is Stored, else an in-memory array seen as one."""
+        return a if isinstance(a, Stored) else Stored(a.shape, a.dtype, InMemory(a), "<memory>")
 
     def flipped(self, axes) -> Stored:
         return Stored(self.shape, self.stored, Flipped(self.source, self.shape[0], axes),
