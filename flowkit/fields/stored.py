@@ -181,9 +181,10 @@ class Stored:
         return out
 
     @staticmethod
-    def of(a) -> Stored:
-        """``a`` itself if it is Stored, else an in-memory array seen as one."""
-        return a if isinstance(a, Stored) else Stored(a.shape, a.dtype, InMemory(a), "<memory>")
+    def of(a, where: str = "<memory>") -> Stored:
+        """``a`` itself if it is Stored, else an in-memory (or memory-mapped) array seen as
+        one, read a slab at a time."""
+        return a if isinstance(a, Stored) else Stored(a.shape, a.dtype, InMemory(a), where)
 
     def flipped(self, axes) -> Stored:
         return Stored(self.shape, self.stored, Flipped(self.source, self.shape[0], axes),

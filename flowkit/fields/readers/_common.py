@@ -8,7 +8,7 @@ import numpy as np
 
 from ..field import Field
 from ..grid import Grid, GridError
-from ..stored import InMemory, Stored, kept_dtype
+from ..stored import Stored, kept_dtype
 
 
 class ReaderError(ValueError):
@@ -60,8 +60,7 @@ def vectors_and_scalars(where, shape, arrays: dict, vector: str):
     elif all(c in arrays for c in comps):
         parts = [arrays[c] for c in comps]
         if any(isinstance(a, Stored) for a in parts):  # stacked when read, not now
-            parts = [a if isinstance(a, Stored) else Stored(a.shape, a.dtype, InMemory(a), n)
-                     for a, n in zip(parts, comps)]
+            parts = [Stored.of(a, n) for a, n in zip(parts, comps)]
             vec = Stored.stacked(parts, f"{where}: {vector}")
         else:
             vec = np.stack(parts, axis=-1)

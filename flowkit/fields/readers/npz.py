@@ -18,7 +18,7 @@ import zipfile
 
 import numpy as np
 
-from ..stored import InMemory, Stored
+from ..stored import Stored
 from ._common import ReaderError, existing, make_field
 
 RESERVED = ("x", "y", "z", "time", "period")
@@ -116,7 +116,7 @@ def read_npy(
         x, y, z = (o[i] + h[i] * np.arange(a.shape[i]) for i in range(3))
         notes.append(f"grid not stored in the .npy file: origin {tuple(o)}, spacing {tuple(h)}")
     if isinstance(a, np.memmap):  # read when used, a slab at a time
-        a = Stored(a.shape, a.dtype, InMemory(a), str(path))
+        a = Stored.of(a, str(path))
     return make_field(
         path, x, y, z, {vector: a}, vector, notes=notes, periodic=periodic, period=period
     )
