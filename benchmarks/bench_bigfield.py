@@ -8,6 +8,8 @@ other, on the same file and the same random seeds:
 - ``flowkit trace FILE --seeds random:S --max-length 10 --rtol 1e-5`` (end to end: start-up,
   reading, tracing, writing the lines);
 - ``flowkit trace`` with S/100 seeds in one octant (what a corner of the field costs);
+- with ``--memory SIZE`` (repeatable): ``flowkit trace --memory SIZE`` as above, its lines
+  compared with the first trace's, and the re-read factor (bytes read / bytes of U);
 - VTK: U read with h5py into VTK's x-fastest order a slab at a time (kept float32, no second
   field-sized copy), a vtkImageData and vtkStreamTracer (RK45, max error 1e-5, propagation
   10, vtkSMPTools threads on every core).
@@ -17,6 +19,8 @@ system calls, page cache included).  The generated file is deleted at the end un
 
     .venv/bin/python benchmarks/bench_bigfield.py --n 512        # 2.1 GB file
     .venv/bin/python benchmarks/bench_bigfield.py --n 1024       # 17 GB file
+    .venv/bin/python benchmarks/bench_bigfield.py --n 1024 --memory 3GB
+    .venv/bin/python benchmarks/bench_bigfield.py --n 1280 --memory 8GB --skip vtk,stats,whole
     .venv/bin/python benchmarks/bench_bigfield.py --n 128 --seeds 1000   # a quick look
 """
 
@@ -148,6 +152,17 @@ def child_vtk(out: str, path: str, n_seeds: int) -> None:
                                      "read_s": t_read, "trace_s": t_trace}))
 
 
+def _same_lines(a: Path, b: Path) -> str:
+    """Whether two lines files hold the same vertices, offsets and reasons ("yes" or why not)."""
+    import h5py
+
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        for name in ("x", "y", "z", "rowSize", "reason"):
+            if name in fa and not np.array_equal(fa[name][()], fb[name][()]):
+                return f"no ({name} differs)"
+    return "yes"
+
+
 def run(label: str, args: list[str]) -> dict:
     """One child process: wall time, peak RSS, bytes read."""
     with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as tmp:
@@ -176,7 +191,10 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=10_000, help="random seeds (default 10000)")
     ap.add_argument("--dir", default=None, help="where to write the field (default: a temp dir)")
     ap.add_argument("--keep", action="store_true", help="keep the generated field file")
-    ap.add_argument("--skip", default="", help="comma-separated: vtk, stats, octant")
+    ap.add_argument("--skip", default="", help="comma-separated: vtk, stats, octant, whole (the "
+                    "trace without --memory)")
+    ap.add_argument("--memory", action="append", default=[],
+                    help="also trace under this memory budget (e.g. 3GB; repeatable)")
     args = ap.parse_args(argv)
     skip = set(filter(None, args.skip.split(",")))
     folder = Path(args.dir or tempfile.mkdtemp(prefix="flowkit-bigfield-"))
@@ -194,20 +212,32 @@ def main(argv=None) -> int:
         res = {"info": run("flowkit info", ["_flowkit", "info", str(path)])}
         if "stats" not in skip:
             res["stats"] = run("flowkit info --stats", ["_flowkit", "info", str(path), "--stats"])
-        common = ["--max-length", "10", "--rtol", "1e-5", "-o", str(lines)]
-        res["trace"] = run("flowkit trace", ["_flowkit", "trace", str(path), "--seeds",
-                                             f"random:{args.seeds}:0", *common])
+        common = ["--max-length", "10", "--rtol", "1e-5"]
+        every = ["--seeds", f"random:{args.seeds}:0", *common]
+        if "whole" not in skip:
+            res["trace"] = run("flowkit trace", ["_flowkit", "trace", str(path), *every,
+                                                 "-o", str(lines)])
+        for m in args.memory:
+            out = folder / f"lines_{m}.h5"
+            res[m] = r = run(f"flowkit trace --memory {m}", [
+                "_flowkit", "trace", str(path), *every, "-o", str(out), "--memory", m])
+            print(f"  re-read factor (bytes read / U): {r.get('read', 0) / u_bytes:.2f}; "
+                  + (f"lines equal to the first trace's: {_same_lines(lines, out)}"
+                     if "trace" in res else ""), flush=True)
+            out.unlink(missing_ok=True)
         if "octant" not in skip:
             k = max(1, args.seeds // 100)
             res["octant"] = run(f"flowkit trace, {k} seeds in one octant", [
                 "_flowkit", "trace", str(path), "--seeds",
-                f"box:0,0,0:{EXTENT / 2},{EXTENT / 2},{EXTENT / 2}:{k}:random:0", *common])
+                f"box:0,0,0:{EXTENT / 2},{EXTENT / 2},{EXTENT / 2}:{k}:random:0", *common,
+                "-o", str(lines.with_name("octant.h5"))])
+            lines.with_name("octant.h5").unlink(missing_ok=True)
         if "vtk" not in skip:
             res["vtk"] = run("VTK vtkStreamTracer (h5py read, float32)",
                              ["_vtk", str(path), str(args.seeds)])
-        tr, vt = res["trace"], res.get("vtk")
+        tr, vt = res.get("trace", {}), res.get("vtk")
         print(f"\npeak RSS of the trace / (U + 0.5 GB): {tr.get('rss', 0) / (u_bytes + 5e8):.2f}")
-        if vt and "error" not in vt and "error" not in tr:
+        if vt and tr and "error" not in vt and "error" not in tr:
             print(f"wall time flowkit trace / VTK: {tr['wall'] / vt['wall']:.2f}")
         if "octant" in res:
             print(f"octant trace read {res['octant'].get('read', 0) / path.stat().st_size:.2f} "

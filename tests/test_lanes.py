@@ -11,6 +11,7 @@ from numba import njit, typeof
 
 from flowkit import trace
 from flowkit.fields.analytic import ABCFlow, SolidBodyRotation
+from flowkit.fields.bricks import NO_BRICKS
 from flowkit.fields.field import Field
 from flowkit.fields.grid import Grid
 from flowkit.integrate import kernel as K
@@ -252,7 +253,8 @@ def test_lockstep_takes_the_interior_steps():
 @njit
 def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row):
     # the kernel's helpers have no Python wrapper (they are only called from compiled code)
-    return K._f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row)
+    return K._f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, NO_BRICKS, ci, cf, coef,
+                k, row)
 
 
 @njit
@@ -271,14 +273,14 @@ def test_kernel_locates_a_point_on_a_face_afresh():
     # a node the lookup puts in the cell above it (rounding may put a node in the cell below)
     m = next(m for m in range(1, gx.size - 2)
              if _axis_cell(gx, inv[0], gx[m]) == m)
-    ci, cf, coef, k = np.full(3, -1, np.int64), np.zeros(9), np.zeros((8, 3)), np.zeros((5, 4))
+    ci, cf, coef, k = np.full(4, -1, np.int64), np.zeros(9), np.zeros((8, 3)), np.zeros((5, 4))
     y, z = gy[7] + 0.3 * (gy[8] - gy[7]), gz[9] + 0.6 * (gz[10] - gz[9])
     inside = gx[m - 1] + 0.5 * (gx[m] - gx[m - 1])
     _f(inside, y, z, 1, False, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 0)
     assert ci[0] == m - 1
     _f(gx[m], y, z, 1, False, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 1)
     assert ci[0] == m  # located afresh; the cell below holds the point too
-    fresh = np.full(3, -1, np.int64), np.zeros(9), np.zeros((8, 3)), np.zeros((5, 4))
+    fresh = np.full(4, -1, np.int64), np.zeros(9), np.zeros((8, 3)), np.zeros((5, 4))
     _f(gx[m], y, z, 1, False, gx, gy, gz, period, inv, vec, *fresh, 0)
     assert np.array_equal(k[1], fresh[3][0])
 

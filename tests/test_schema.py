@@ -136,8 +136,9 @@ def test_a_backend_gets_one_launch_with_the_callers_arrays():
         arrays = launch.arrays()
         assert arrays[0] is launch.active and arrays[-1] is launch.out_n
         assert arrays[5] is launch.field.gx and arrays[10] is launch.field.vec
-        assert arrays[11] is launch.method.c and arrays[17] is launch.method.info
-        assert arrays[20] is launch.sf and arrays[21] is launch.si
+        assert arrays[11] is launch.field.bk and launch.field.bk.size == 0  # in memory
+        assert arrays[12] is launch.method.c and arrays[18] is launch.method.info
+        assert arrays[21] is launch.sf and arrays[22] is launch.si
         assert launch.sf.shape[1] == schema.NF and launch.si.shape[1] == schema.NI
         assert launch.fo.shape == (schema.NFO,) and launch.io.shape == (schema.NIO,)
         seen.append(len(arrays))

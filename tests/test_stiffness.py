@@ -7,6 +7,7 @@ from numba import njit
 from flowkit import trace
 from flowkit.cli import main
 from flowkit.fields.analytic import ABCFlow, LinearField, SolidBodyRotation
+from flowkit.fields.bricks import NO_BRICKS
 from flowkit.integrate import kernel as K
 from flowkit.integrate import rosenbrock as R
 from flowkit.integrate.methods import get_method
@@ -30,7 +31,7 @@ SEEDS = np.array([[0.5, -0.3, 0.0], [0.9, 0.2, 1.0], [-0.2, -0.7, 0.5]])
 @njit
 def _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef):
     # the kernel's helpers have no Python wrapper (they are only called from compiled code)
-    return K._relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+    return K._relocate(gx, gy, gz, period, inv, vec, NO_BRICKS, px, py, pz, ci, cf, coef)
 
 
 def test_cell_jacobian_is_the_exact_gradient_of_the_interpolant():

@@ -48,6 +48,9 @@ def register(subparsers) -> None:
                         "least FRACTION of its vertices (default 0.8); recorded in the file")
     p.add_argument("--float64", action="store_true", help="store positions as float64")
     p.add_argument("--backend", default="numba", help="numba (default) or opencl[:PLATFORM[:DEVICE]]")
+    p.add_argument("--memory", metavar="SIZE",
+                   help="memory budget, e.g. 4GB (default: what the machine has free); a field "
+                        "that does not fit is read brick by brick, only where lines go")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     add_scale_options(p)
     p.set_defaults(func=run)
@@ -67,7 +70,7 @@ def run(args) -> int:
         max_length=args.max_length, max_time=args.max_time, max_steps=args.max_steps,
         direction=direction, parameter=args.parameter, cell_aware=args.cell_aware,
         attributes=args.attributes, spacing=args.spacing, count=args.count,
-        progress=False if args.quiet else None,
+        progress=False if args.quiet else None, memory=args.memory,
     )
     from ..distributed import cli as scale
 

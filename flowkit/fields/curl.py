@@ -19,6 +19,7 @@ from numba import njit
 from ..integrate.threads import run_ranges
 from ..jit import inline, prefetch
 from . import interp
+from .bricks import by_bricks, read_whole
 
 # -- the derivative along one axis, as np.gradient forms it --------------------------------
 
@@ -37,6 +38,10 @@ def gradient(f: np.ndarray, c: np.ndarray, period: float, axis: int) -> np.ndarr
         return np.take(np.gradient(ext_f, ext_c, axis=axis, edge_order=2), np.arange(1, n + 1), axis)
     return np.gradient(f, c, axis=axis, edge_order=2 if n >= 3 else 1)
 
+
+# nodes a node's derivative may read on either side of it: a one-sided fallback stencil 2, one
+# more across a seam whose last node repeats the first
+CURL_REACH = 3
 
 # a node's derivative: WEIGHTS  w0 f[i0] + w1 f[i1] + w2 f[i2]  (in that order), or
 # QUOTIENT  (f[i1] - f[i0]) / w0  (np.gradient's form on uniform spacing and for two nodes)
@@ -352,10 +357,14 @@ def vorticity_at(field, points) -> np.ndarray:
     Its memory follows the points, not the grid: a byte per node marks the corners, another
     counts them (a marked node's rank among all of them is its row), and the curl is kept at
     the marked nodes only.  (A grid-sized curl array, even written only at those nodes, cost a
-    page fault for every 4 KiB page they touched: a third of the time.)"""
+    page fault for every 4 KiB page they touched: a third of the time.)  A large field not in
+    memory is read near the points only (``bricks.by_bricks``)."""
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    if not read_whole(field):
+        got = by_bricks(field, pts, lambda f, p: {"w": vorticity_at(f, p)}, halo=CURL_REACH)
+        return got.get("w", np.empty((0, 3)))
     g = field.grid
     vec = field.vector
-    pts = np.ascontiguousarray(points, dtype=np.float64)
     shape = np.array(vec.shape[:3], np.int64)
     n_nodes = int(np.prod(shape))
     words = np.zeros((n_nodes + 7) // 8, np.uint64)  # the marks, padded to whole words

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import interp
+from .bricks import by_bricks, read_whole
 from .grid import Grid
 from .stored import Stored, as_kept, fmt_bytes
 
@@ -119,6 +120,15 @@ class Field:
     def vector_in_memory(self) -> bool:
         return not isinstance(self._vector, Stored)
 
+    def stored_vector(self) -> Stored:
+        """The vector as a Stored handle, without reading it (an array in memory seen as one)."""
+        return Stored.of(self._vector, f"{self.source}: {self.vector_name}")
+
+    def vector_box(self, box) -> np.ndarray:
+        """The vector at the nodes of ``box`` (three slices), read alone where it is not in
+        memory."""
+        return self._vector[box] if self.vector_in_memory() else self._vector.read_box(box)
+
     # -- sampling -------------------------------------------------------------------------
     def sample(self, points) -> tuple[np.ndarray, np.ndarray]:
         """Trilinear vector at points (n, 3) -> (values (n, 3), status (n,) int8).
@@ -127,6 +137,9 @@ class Field:
         ``interp.NAN_CELL`` (a corner node of the cell holds NaN/inf; values NaN).
         """
         pts = _points(points)
+        if not read_whole(self):
+            got = by_bricks(self, pts, lambda f, p: dict(zip(("v", "s"), f.sample(p))))
+            return got.get("v", np.empty((0, 3))), got.get("s", np.empty(0, np.int8))
         out = np.empty((pts.shape[0], 3))
         status = np.empty(pts.shape[0], np.int8)
         interp.sample_vectors(*self.grid.kernel_args(), self.vector, pts, out, status)
@@ -134,8 +147,13 @@ class Field:
 
     def sample_scalar(self, name: str, points) -> tuple[np.ndarray, np.ndarray]:
         """Trilinear scalar ``name`` at points (n, 3) -> (values (n,), status (n,) int8)."""
-        arr = self.scalar(name)
+        self._known(name)
         pts = _points(points)
+        if not read_whole(self, name):
+            got = by_bricks(self, pts, lambda f, p: dict(zip("vs", f.sample_scalar(name, p))),
+                            [name])
+            return got.get("v", np.empty(0)), got.get("s", np.empty(0, np.int8))
+        arr = self.scalar(name)
         out = np.empty(pts.shape[0])
         status = np.empty(pts.shape[0], np.int8)
         interp.sample_scalars(*self.grid.kernel_args(), arr, pts, out, status)
@@ -145,8 +163,14 @@ class Field:
         """The vector and scalar ``name`` at points (n, 3), each point located once: (vectors
         (n, 3), values (n,), status (n,) int8: NAN_CELL where either's cell has a NaN corner);
         the values ``sample`` and ``sample_scalar`` give."""
-        arr = self.scalar(name)
+        self._known(name)
         pts = _points(points)
+        if not (read_whole(self) and read_whole(self, name)):
+            got = by_bricks(self, pts, lambda f, p: dict(zip("vas", f.sample_with(name, p))),
+                            [name])
+            return (got.get("v", np.empty((0, 3))), got.get("a", np.empty(0)),
+                    got.get("s", np.empty(0, np.int8)))
+        arr = self.scalar(name)
         out = np.empty((pts.shape[0], 3))
         out_s = np.empty(pts.shape[0])
         status = np.empty(pts.shape[0], np.int8)
@@ -154,11 +178,13 @@ class Field:
         return out, out_s, status
 
     def scalar(self, name: str) -> np.ndarray:
-        try:
-            return self.scalars[name]
-        except KeyError:
+        self._known(name)
+        return self.scalars[name]
+
+    def _known(self, name: str) -> None:
+        if name not in self.scalars:
             have = ", ".join(sorted(self.scalars)) or "none"
-            raise KeyError(f"{self.source}: no scalar field '{name}' (available: {have})") from None
+            raise KeyError(f"{self.source}: no scalar field '{name}' (available: {have})")
 
     # -- statistics -----------------------------------------------------------------------
     def speed(self) -> np.ndarray:

@@ -65,6 +65,26 @@ def fmt_bytes(n: float) -> str:
     return f"{n} B"
 
 
+def parse_bytes(text) -> int:
+    """A size in bytes from a number or text such as "4GB", "512 MB", "3.5G", "2GiB"."""
+    if isinstance(text, (int, np.integer)):
+        return int(text)
+    t = str(text).strip().upper().replace(" ", "").removesuffix("B")
+    scale = 1
+    for suffix, f in (("KI", 1 << 10), ("MI", 1 << 20), ("GI", 1 << 30), ("TI", 1 << 40),
+                      ("K", 10**3), ("M", 10**6), ("G", 10**9), ("T", 10**12)):
+        if t.endswith(suffix):
+            t, scale = t[: -len(suffix)], f
+            break
+    try:
+        value = float(t) * scale
+    except ValueError:
+        raise ValueError(f"not a size in bytes: {text!r} (e.g. 4GB, 512MB)") from None
+    if not (value > 0 and np.isfinite(value)):
+        raise ValueError(f"a size in bytes must be positive, got {text!r}")
+    return int(value)
+
+
 def check_memory(nbytes: int, what: str) -> None:
     """Raise FieldMemoryError, naming ``what`` and the sizes, when ``nbytes`` do not fit in
     the memory available now."""
@@ -72,29 +92,33 @@ def check_memory(nbytes: int, what: str) -> None:
     if free is not None and nbytes > free:
         raise FieldMemoryError(
             f"{what} needs {fmt_bytes(nbytes)} of memory, {fmt_bytes(free)} available; "
-            "free memory, or trace a smaller field or a subset of this one"
+            "free memory, or trace it (a trace reads a field brick by brick, --memory)"
         )
 
 
 class Source(ABC):
-    """Where a Stored array's values come from: ``fill(out, i0, i1)`` writes the nodes
-    i0:i1 along x into ``out`` (shape (i1 - i0, ny, nz[, 3]), the kept dtype).  Readers
-    subclass it with picklable state (a path and a dataset name, not an open file), so that a
-    Field can travel to another process and read there."""
+    """Where a Stored array's values come from: ``fill_box(out, box)`` writes the nodes of
+    ``box`` (three ``slice(start, stop)``, x, y, z) into ``out`` (their shape[, 3], the kept
+    dtype).  Readers subclass it with picklable state (a path and a dataset name, not an open
+    file), so that a Field can travel to another process and read there."""
 
     @abstractmethod
+    def fill_box(self, out: np.ndarray, box: tuple) -> None:
+        """Write the nodes of ``box`` into ``out``."""
+
     def fill(self, out: np.ndarray, i0: int, i1: int) -> None:
-        """Write the nodes i0:i1 along x into ``out``."""
+        """Write the nodes i0:i1 along x (a slab) into ``out``."""
+        self.fill_box(out, (slice(i0, i1), slice(0, out.shape[1]), slice(0, out.shape[2])))
 
 
 class InMemory(Source):
-    """An array already in memory (or memory-mapped): a slab is a copy of its rows."""
+    """An array already in memory (or memory-mapped): a box is a copy of its part."""
 
     def __init__(self, array):
         self.array = array
 
-    def fill(self, out, i0, i1):
-        out[...] = self.array[i0:i1]
+    def fill_box(self, out, box):
+        out[...] = self.array[box]
 
 
 class Stacked(Source):
@@ -103,23 +127,24 @@ class Stacked(Source):
     def __init__(self, parts):
         self.parts = list(parts)
 
-    def fill(self, out, i0, i1):
+    def fill_box(self, out, box):
         tmp = np.empty(out.shape[:3], out.dtype)
         for c, p in enumerate(self.parts):
-            p.source.fill(tmp, i0, i1)
+            p.source.fill_box(tmp, box)
             out[..., c] = tmp
 
 
 class Flipped(Source):
     """Another source with the axes ``axes`` (of x, y, z: 0, 1, 2) in reverse order."""
 
-    def __init__(self, inner: Source, nx: int, axes):
-        self.inner, self.nx, self.axes = inner, nx, tuple(axes)
+    def __init__(self, inner: Source, shape, axes):
+        self.inner, self.shape, self.axes = inner, tuple(shape[:3]), tuple(axes)
 
-    def fill(self, out, i0, i1):
-        lo, hi = (self.nx - i1, self.nx - i0) if 0 in self.axes else (i0, i1)
+    def fill_box(self, out, box):
+        box = tuple(slice(n - s.stop, n - s.start) if a in self.axes else s
+                    for a, (s, n) in enumerate(zip(box, self.shape)))
         tmp = np.empty_like(out)
-        self.inner.fill(tmp, lo, hi)
+        self.inner.fill_box(tmp, box)
         out[...] = np.flip(tmp, axis=self.axes)
 
 
@@ -180,6 +205,13 @@ class Stored:
                 done(out[i0:i1].nbytes)
         return out
 
+    def read_box(self, box) -> np.ndarray:
+        """The nodes of ``box`` (three ``slice(start, stop)``), read alone."""
+        box = tuple(slice(*s.indices(n)[:2]) for s, n in zip(box, self.shape))
+        out = np.empty(tuple(s.stop - s.start for s in box) + self.shape[3:], self.dtype)
+        self.source.fill_box(out, box)
+        return out
+
     @staticmethod
     def of(a, where: str = "<memory>") -> Stored:
         """``a`` itself if it is Stored, else an in-memory (or memory-mapped) array seen as
@@ -187,14 +219,16 @@ class Stored:
         return a if isinstance(a, Stored) else Stored(a.shape, a.dtype, InMemory(a), where)
 
     def flipped(self, axes) -> Stored:
-        return Stored(self.shape, self.stored, Flipped(self.source, self.shape[0], axes),
+        return Stored(self.shape, self.stored, Flipped(self.source, self.shape, axes),
                       self.where, None)
 
     @staticmethod
     def stacked(parts, where: str) -> Stored:
         """A vector from three Stored scalars of one shape."""
         stored = np.result_type(*(p.stored for p in parts))
-        return Stored((*parts[0].shape, 3), stored, Stacked(parts), where, None)
+        chunks = parts[0].chunks
+        return Stored((*parts[0].shape, 3), stored, Stacked(parts), where,
+                      None if chunks is None else (*chunks, 3))
 
     def __repr__(self):
         return f"Stored({self.where}, shape={self.shape}, dtype={self.dtype})"

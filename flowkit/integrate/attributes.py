@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..fields import Field
-from ..fields.curl import vorticity_at
+from ..fields.bricks import by_bricks, read_whole
+from ..fields.curl import CURL_REACH, vorticity_at
 
 # name -> intermediates it needs
 ATTRIBUTES = {
@@ -102,9 +103,22 @@ def norm(v: np.ndarray) -> np.ndarray:
     return np.sqrt((x * x + y * y) + z * z)
 
 
-def compute(field: Field, names, points, t, s, seeds_per_vertex) -> dict[str, np.ndarray]:
-    """Attributes ``names`` at the vertices ``points`` (N, 3)."""
+def compute(field: Field, names, points, t, s, seeds_per_vertex,
+            bricked: bool = False) -> dict[str, np.ndarray]:
+    """Attributes ``names`` at the vertices ``points`` (N, 3).  A large field not in memory
+    (any, where ``bricked``: the trace read it brick by brick) is read near the vertices only,
+    a few bricks at a time (``bricks.by_bricks``)."""
     check(field, names)
+    sampled = [n for n in names if n not in ("time", "arc_length", "distance_to_seed")]
+    scalars = [n for n in sampled if n not in ATTRIBUTES]
+    whole = read_whole(field) and all(read_whole(field, n) for n in scalars)
+    if sampled and (bricked or not whole):
+        # every sampled attribute from one read of the bricks near the vertices
+        halo = CURL_REACH if any(ATTRIBUTES.get(n) == ("curl",) for n in sampled) else 0
+        out = by_bricks(field, points, lambda f, p: compute(f, sampled, p, None, None, None),
+                        scalars, halo)
+        rest = compute(field, [n for n in names if n not in out], points, t, s, seeds_per_vertex)
+        return {n: out[n] if n in out else rest[n] for n in names}
     cache: dict[str, np.ndarray] = {}
     scalars: dict[str, np.ndarray] = {}  # scalar fields sampled with the velocity
     first = next((n for n in names if n not in ATTRIBUTES), None)

@@ -34,6 +34,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ..fields.bricks import B_CELLS, B_COUNT, B_TABLE
 from ..fields.interp import locate_axis, prefetch_cell, prefetch_corners
 from ..jit import helper, inline, kernel
 from ..jit import prefetch as _prefetch  # noqa: F401 (lanes.py, benchmarks)
@@ -63,6 +64,7 @@ from .schema import (  # noqa: F401
     I_REASON,
     I_STATUS,
     I_STIFF,
+    I_WAIT,
     M_ADAPTIVE,
     M_FSAL,
     M_HASE2,
@@ -177,14 +179,65 @@ def _locate_cell(c, period, inv, x):
 
 
 @inline
-def _gather(vec, ci, coef):
-    """Coefficients of the trilinear polynomial of cell ci; False when a corner is not finite."""
-    nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
+def _brick(bk, i, j, k):
+    """The brick holding cell (i, j, k) of a bricked field, when it is not resident; else -1."""
+    brick = ((i // bk[B_CELLS] * bk[B_COUNT + 1] + j // bk[B_CELLS + 1]) * bk[B_COUNT + 2]
+             + k // bk[B_CELLS + 2])
+    return brick if bk[B_TABLE + brick] < 0 else -1
+
+
+@inline
+def _brick_across(bk, a, up, gx, gy, gz, period, ci):
+    """``_brick`` of the cell through ci's face on axis a (-1 also where there is none)."""
+    c = gx if a == 0 else (gy if a == 1 else gz)
+    i = ci[a] + (1 if up else -1)
+    n = _n_cells(c, period[a])
+    if i < 0 or i >= n:
+        if period[a] == 0.0:
+            return -1
+        i = 0 if i >= n else n - 1
+    return _brick(bk, i if a == 0 else ci[0], i if a == 1 else ci[1], i if a == 2 else ci[2])
+
+
+@helper
+def _brick_at(bk, gx, gy, gz, period, inv, p):
+    """``_brick`` of the cell ``_relocate`` finds for point p."""
+    i, _, _ = _locate_cell(gx, period[0], inv[0], p[0])
+    j, _, _ = _locate_cell(gy, period[1], inv[1], p[1])
+    k, _, _ = _locate_cell(gz, period[2], inv[2], p[2])
+    return _brick(bk, i, j, k)
+
+
+@inline
+def _gather(vec, bk, ci, coef):
+    """Coefficients of the trilinear polynomial of cell ci; False when a corner is not finite.
+
+    ``bk`` empty: ``vec`` is the whole field.  Otherwise the field is bricked (``bricks.py``):
+    ``vec`` is the pool of resident bricks and ``bk`` its table; a cell whose brick is not
+    resident puts the brick's number in ci[3] (the step loop then suspends the line, which
+    waits for the brick) and gives NaN."""
     i, j, k = ci[0], ci[1], ci[2]
-    # upper corners (node 0 after the last on a wrapped axis), without integer division
-    i1 = i + 1 if i + 1 < nx else 0
-    j1 = j + 1 if j + 1 < ny else 0
-    k1 = k + 1 if k + 1 < nz else 0
+    if bk.size == 0:
+        nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
+        # upper corners (node 0 after the last on a wrapped axis), without integer division
+        i1 = i + 1 if i + 1 < nx else 0
+        j1 = j + 1 if j + 1 < ny else 0
+        k1 = k + 1 if k + 1 < nz else 0
+    else:
+        missing = _brick(bk, i, j, k)
+        if missing >= 0:
+            ci[3] = missing
+            for m in range(8):
+                for c in range(3):
+                    coef[m, c] = np.nan
+            return False
+        bi, bj, bq = i // bk[B_CELLS], j // bk[B_CELLS + 1], k // bk[B_CELLS + 2]
+        slot = bk[B_TABLE + (bi * bk[B_COUNT + 1] + bj) * bk[B_COUNT + 2] + bq]
+        # the slot's nodes from the brick's first cell on, the layer above its last included
+        i = slot * (bk[B_CELLS] + 1) + i - bi * bk[B_CELLS]
+        j -= bj * bk[B_CELLS + 1]
+        k -= bq * bk[B_CELLS + 2]
+        i1, j1, k1 = i + 1, j + 1, k + 1
     bad = 0.0
     for c in range(3):  # (float64 before any arithmetic: a float32 field gives the same lines)
         v000 = np.float64(vec[i, j, k, c])
@@ -209,7 +262,7 @@ def _gather(vec, ci, coef):
 
 
 @helper
-def _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef):
+def _relocate(gx, gy, gz, period, inv, vec, bk, px, py, pz, ci, cf, coef):
     i, lo, hi = _locate_cell(gx, period[0], inv[0], px)
     ci[0] = i
     cf[0] = lo
@@ -225,7 +278,7 @@ def _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef):
     cf[2] = lo
     cf[5] = hi
     cf[8] = 1.0 / _width(gz, period[2], i)
-    return _gather(vec, ci, coef)
+    return _gather(vec, bk, ci, coef)
 
 
 @helper
@@ -282,7 +335,7 @@ def _fc(px, py, pz, param, cf, coef, k, row):
 
 
 @inline
-def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, row):
+def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, bk, ci, cf, coef, k, row):
     """Right-hand side at p: cell-aware, the current cell's polynomial; otherwise the polynomial
     of the cell holding p, looked up unless p is strictly inside the cached cell.  A point on a
     face is located afresh, so the cell (and the rounding) depends on the point alone, not on
@@ -290,12 +343,12 @@ def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, 
     for a NaN cell."""
     if not aware and not (ci[0] >= 0 and cf[0] < px < cf[3] and cf[1] < py < cf[4]
                           and cf[2] < pz < cf[5]):
-        _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+        _relocate(gx, gy, gz, period, inv, vec, bk, px, py, pz, ci, cf, coef)
     return _fc(px, py, pz, param, cf, coef, k, row)
 
 
 @inline
-def _move(a, up, c, per, vec, ci, cf, coef):
+def _move(a, up, c, per, vec, bk, ci, cf, coef):
     """Step the current cell through its face on axis a; 0 ok, 1 left the domain, 2 NaN cell."""
     if up:
         i = ci[a] + 1
@@ -317,29 +370,29 @@ def _move(a, up, c, per, vec, ci, cf, coef):
         cf[a] = c[i] if per == 0.0 else cf[3 + a] - wdt
     ci[a] = i
     cf[6 + a] = 1.0 / wdt
-    return 0 if _gather(vec, ci, coef) else 2
+    return 0 if _gather(vec, bk, ci, coef) else 2
 
 
 @inline
-def _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef):
+def _move_axis(a, up, gx, gy, gz, period, vec, bk, ci, cf, coef):
     # the axis array chosen at run time: no reference counting here (no NRT in the step loop),
     # and one copy of _move at each call site rather than one per axis
     c = gx if a == 0 else (gy if a == 1 else gz)
-    return _move(a, up, c, period[a], vec, ci, cf, coef)
+    return _move(a, up, c, period[a], vec, bk, ci, cf, coef)
 
 
 @inline
-def _through_face(a, up, y, param, gx, gy, gz, period, vec, ci, cf, coef, k):
+def _through_face(a, up, y, param, gx, gy, gz, period, vec, bk, ci, cf, coef, k):
     """Into the neighbour cell through the current cell's face on axis a (the upper one if up),
     k0 = f(y) there: 0 ok, 1 left the domain, 2 a NaN cell."""
-    res = _move_axis(a, up, gx, gy, gz, period, vec, ci, cf, coef)
+    res = _move_axis(a, up, gx, gy, gz, period, vec, bk, ci, cf, coef)
     if res == 0:
         _fc(y[0], y[1], y[2], param, cf, coef, k, np.int64(0))
     return res
 
 
 @inline
-def _onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, ci, cf, coef):
+def _onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, bk, ci, cf, coef):
     """Cell-aware, before a step: where the line stands on a face of its cell moving outwards
     (along d k0), into the neighbour cell; elsewhere back into the cell where rounding left the
     point a hair outside.  The reason to stop (R_OUT, R_NAN), or -1."""
@@ -348,7 +401,7 @@ def _onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, ci, cf, coef):
         up = y[a] >= cf[3 + a] and mv > 0.0
         if up or (y[a] <= cf[a] and mv < 0.0):
             y[a] = cf[3 + a] if up else cf[a]
-            res = _through_face(a, up, y, param, gx, gy, gz, period, vec, ci, cf, coef, k)
+            res = _through_face(a, up, y, param, gx, gy, gz, period, vec, bk, ci, cf, coef, k)
             if res != 0:
                 return R_OUT if res == 1 else R_NAN
         else:
@@ -730,11 +783,12 @@ def _store(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, hk, n_cross, k
 
 
 @helper
-def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, kexp, fo, io, sf, si,
+def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, bk, kexp, fo, io, sf, si,
            out_p, out_par, out_n, k, coef, cf, ci, y, yt, dlo, dhi):
     """Start line l at its seed: the first vertex, the initial step, and the state of a line
-    suspended before its first step (``_load_state``); False (line done) when the seed lies
-    outside the domain or in NaN data.  Compiled once and called (once per line)."""
+    suspended before its first step (``_load_state``); False when the seed lies outside the
+    domain or in NaN data (the line is done) or where a brick is not resident (ci[3]: it
+    waits).  Compiled once and called (once per line)."""
     C0, C1 = np.int64(0), np.int64(1)  # typed (see helper)
     param, aware, emit = io[P_PARAM], io[P_AWARE] != 0, io[P_EMIT]
     d, phase = dirs[l], phases[l]
@@ -746,8 +800,10 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, kexp, fo,
             inside = False
     sp = np.nan
     if inside:
-        _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+        _relocate(gx, gy, gz, period, inv, vec, bk, px, py, pz, ci, cf, coef)
         sp = _fc(px, py, pz, param, cf, coef, k, C0)
+    if ci[3] >= 0:
+        return False  # its brick is not resident: the line waits, NEW
     if not (inside and math.isfinite(sp)):
         si[l, I_STATUS] = DONE
         si[l, I_REASON] = R_SEED
@@ -758,7 +814,9 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, kexp, fo,
         h0, d1 = _initial_guess(fo, y, k)
         for a in range(3):
             yt[a] = y[a] + d * h0 * k[0, a]
-        _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, ci, cf, coef, k, C1)
+        _f(yt[0], yt[1], yt[2], param, aware, gx, gy, gz, period, inv, vec, bk, ci, cf, coef, k, C1)
+        if ci[3] >= 0:
+            return False
         h = _initial_step(fo, y, k, h0, d1, kexp, np.bool_(True))
     elif h <= 0.0:
         h = 1.0
@@ -785,10 +843,16 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, kexp, fo,
 # scratch arrays from _advance_range
 @kernel(nogil=True, error_model="numpy")
 def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv,
-                   vec, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n,
-                   k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd, coef0, cf0, ci0):
+                   vec, bk, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n,
+                   k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd, coef0, cf0, ci0, yk_s, coef_s,
+                   cf_s, ci_s):
     """The lines ``active[start:stop]`` one after the other (slots start..stop-1), without the
-    GIL, so that threads run ranges side by side (``threads.run_ranges``)."""
+    GIL, so that threads run ranges side by side (``threads.run_ranges``).
+
+    A bricked field (``bk`` not empty): a step commits nothing until every cell it reads is
+    resident.  Each step starts from a copy of the line's point, k0 and cell (``*_s``); where a
+    cell's brick is missing (ci[3]), the line goes back to that copy and suspends, waiting for
+    the brick (si[l, I_WAIT]), to take the same step again once it is there."""
     S, n_err, fs, adaptive, kexp = mi[M_STAGES], mi[M_NERR], mi[M_FSAL], mi[M_ADAPTIVE] != 0, mi[M_KEXP]
     has_e2 = mi[M_HASE2] != 0
     C0, C1, C2, C3 = np.int64(0), np.int64(1), np.int64(2), np.int64(3)  # typed (see helper)
@@ -808,6 +872,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
     n_step = max(n_err, fs + 1)  # the stages of every step (the last one: f(y1))
     B = out_p.shape[1]
     mode = io[P_PASS]
+    bricked = bk.size > 0
     for slot in range(start, stop):
         l = active[slot]
         if mode != PASS_FINISH:
@@ -820,13 +885,15 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
         if si[l, I_STATUS] == DONE:  # only a pending emission left
             _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
             continue
-        ci[0] = ci[1] = ci[2] = -1
+        ci[0] = ci[1] = ci[2] = ci[3] = -1
+        si[l, I_WAIT] = 0
         dlo[0], dlo[1], dlo[2] = gx[0], gy[0], gz[0]
         dhi[0], dhi[1], dhi[2] = gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]
 
         if si[l, I_STATUS] == NEW and not _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv,
-                                                  vec, kexp, fo, io, sf, si, out_p, out_par, out_n,
+                                                  vec, bk, kexp, fo, io, sf, si, out_p, out_par, out_n,
                                                   k, coef, cf, ci, y, yt, dlo, dhi):
+            si[l, I_WAIT] = ci[3] + 1
             continue
         # (a new line starts from the state _start wrote, as a suspended line resumes)
         tau, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, np.int64(I_LASTREJ), beta)
@@ -844,11 +911,15 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             cf[6] = 1.0 / _width(gx, period[0], ci[0])
             cf[7] = 1.0 / _width(gy, period[1], ci[1])
             cf[8] = 1.0 / _width(gz, period[2], ci[2])
-            _gather(vec, ci, coef)
+            _gather(vec, bk, ci, coef)
+            if ci[3] >= 0:
+                si[l, I_WAIT] = ci[3] + 1
+                continue
         if not _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B):
             continue
 
         reason = -1
+        hk_s, kwait_s = hk, kwait
         suspended = setup_only  # (lanes.py's setup pass: the line stops before its first step)
         while not suspended:
             if out_n[slot] >= B:
@@ -861,9 +932,19 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             if n_acc + n_rej >= max_steps:
                 reason = R_MAXSTEPS
                 break
+            if bricked:  # what a step that meets a missing brick goes back to
+                for a in range(4):
+                    yk_s[a] = y[a]
+                    yk_s[4 + a] = k[0, a]
+                _copy_cell(ci, cf, coef, ci_s, cf_s, coef_s)
+                hk_s, kwait_s = hk, kwait
             # where the line stands: on a face moving outwards -> next cell, or out of the domain
             if aware:
-                reason = _onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, ci, cf, coef)
+                reason = _onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, bk, ci, cf, coef)
+                if ci[3] >= 0:
+                    reason = -1
+                    suspended = True
+                    break
                 if reason >= 0:
                     break
             else:
@@ -904,7 +985,8 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             inc = aware and not long  # every stage from the cell the step starts in
             if long:
                 _copy_cell(ci, cf, coef, ci0, cf0, coef0)
-            if inc and ax_exit >= 0:  # the neighbour across the exit face, on any grid
+            # (not in a bricked field's pool, whose layout is not the grid's)
+            if inc and ax_exit >= 0 and not bricked:  # the neighbour across the exit face
                 nb0, nb1, nb2 = ci[0], ci[1], ci[2]
                 step = 1 if d * k[0, ax_exit] > 0.0 else -1
                 if ax_exit == 0:
@@ -915,7 +997,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                     nb2 += step
                 # (an index off the grid only asks for an address nobody reads: no fault)
                 prefetch_corners(vec, C3, gx.size, gy.size, gz.size, nb0, nb1, nb2)
-            else:
+            elif not bricked:
                 last = np.int64(-1)
                 for st in range(1, n_step):
                     if mc[st] != mc[st - 1]:
@@ -932,13 +1014,13 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 if inc:
                     _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
                 else:
-                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, bk, ci, cf, coef, k, st)
             dep1, err, finite = _step_end(y, k, hs, mb, me, me2, n_err, adaptive, has_e2, fo, y1)
             y1x, y1y, y1z = y1[0], y1[1], y1[2]
             if finite and not (adaptive and err > 1.0):  # the remaining stages up to f(y1)
                 for st in range(n_err, fs + 1):
                     _stage_point(ma, k, st, y, hs, yt)
-                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef,
+                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, bk, ci, cf, coef,
                        k, st)
                 if long:
                     # the kink bound: the field at y1 against the start cell's polynomial there,
@@ -955,6 +1037,9 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                         err = max(err, ek)
                     else:
                         finite = False
+            if ci[3] >= 0:  # a brick is missing
+                suspended = True
+                break
             if long and not (finite and err <= 1.0):
                 # the kink at the faces costs more than the tolerance (or NaN data lies beyond, y1
                 # included: f(y1) entered the kink bound):
@@ -977,22 +1062,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                     break
                 continue
 
-            # accepted
-            if adaptive and _stalled(sf, l, y1, (d * lim_ind if hit_lim else tau + hs)
-                                     if param == 0 else dep1, fo):
-                reason = R_STAG
-                break
-            if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
-                si[l, I_STIFF] = stiff_update(si[l, I_STIFF], dp5_hlambda(hs, k, ys, y1))
-            if adaptive:
-                hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin,
-                                                facmax, beta, expo1)
-            else:
-                hnext = h
-            last_rej = False
-            hnext = d * min(abs(hnext), hmax)
-
-            # events inside the step, on the dense output
+            # accepted: events inside the step, on the dense output
             ev = EV_NONE
             ev_axis = np.int64(-1)
             ev_face = 0.0
@@ -1008,7 +1078,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             if need_face or need_dep or emit == EMIT_SPACING:
                 for st in range(fs + 1, S):  # stages only the dense output uses
                     _stage_point(ma, k, st, y, hs, yt)
-                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, ci, cf, coef, k, st)
+                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, bk, ci, cf, coef, k, st)
                 for a in range(4):
                     for j in range(q):
                         acc = 0.0
@@ -1049,6 +1119,30 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                     ev = EV_DEPLIM
             if ev == EV_FACE and not inc:
                 ev = EV_BOUNDARY
+            if bricked:  # the cell the line moves to after the step
+                if ev == EV_FACE:
+                    ci[3] = _brick_across(bk, ev_axis, ev_face == cf[3 + ev_axis], gx, gy, gz,
+                                          period, ci)
+                elif long and ev == EV_NONE and not (cf[0] <= y1x <= cf[3] and cf[1] <= y1y <= cf[4]
+                                                     and cf[2] <= y1z <= cf[5]):
+                    ci[3] = _brick_at(bk, gx, gy, gz, period, inv, y1)
+                if ci[3] >= 0:
+                    suspended = True
+                    break
+            if adaptive and _stalled(sf, l, y1, (d * lim_ind if hit_lim else tau + hs)
+                                     if param == 0 else dep1, fo):
+                reason = R_STAG
+                break
+            if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
+                si[l, I_STIFF] = stiff_update(si[l, I_STIFF], dp5_hlambda(hs, k, ys, y1))
+            if adaptive:
+                hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin,
+                                                facmax, beta, expo1)
+            else:
+                hnext = h
+            last_rej = False
+            hnext = d * min(abs(hnext), hmax)
+
             # commit the step
             n_acc += 1
             tau0 = tau
@@ -1071,7 +1165,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                             and cf[2] <= y[2] <= cf[5]):
                         # (k0 = f(y1) came from the cell holding y1 already, or from its neighbour
                         # on a shared face: the same value)
-                        _relocate(gx, gy, gz, period, inv, vec, y[0], y[1], y[2], ci, cf, coef)
+                        _relocate(gx, gy, gz, period, inv, vec, bk, y[0], y[1], y[2], ci, cf, coef)
             else:
                 ynew0 = _dense(qd, C0, q, y[0], hs, th)
                 ynew1 = _dense(qd, C1, q, y[1], hs, th)
@@ -1085,7 +1179,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 if ev == EV_FACE:
                     # through the face (whatever the velocity there says); start afresh in the new cell
                     res = _through_face(ev_axis, ev_face == cf[3 + ev_axis], y, param, gx, gy, gz,
-                                        period, vec, ci, cf, coef, k)
+                                        period, vec, bk, ci, cf, coef, k)
                     if res == 1:
                         ev = EV_BOUNDARY
                     elif res == 2:
@@ -1120,6 +1214,13 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             if reason >= 0:
                 break
 
+        if ci[3] >= 0:  # back to where the step started, to wait for the brick
+            for a in range(4):
+                y[a] = yk_s[a]
+                k[0, a] = yk_s[4 + a]
+            _copy_cell(ci_s, cf_s, coef_s, ci, cf, coef)
+            hk, kwait = hk_s, kwait_s
+            si[l, I_WAIT] = ci[3] + 1
         # save the state
         _store(sf, si, l, y, k, tau, h, errp, n_acc, n_rej, last_rej, hk, n_cross, kfail, kwait,
                cf, ci)
@@ -1135,16 +1236,19 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
 def _scratch(n_rows):
     """The step loop's scratch arrays (one line's worth, reused by the next line of a range)."""
     return (np.empty((n_rows, 4)),  # k: the stages, and a spare row
-            np.empty((8, 3)), np.empty(9), np.empty(3, np.int64),  # the cached cell: polynomial,
-            np.empty(4), np.empty(3), np.empty(3), np.empty(3),  # faces, index; y, yt, ys, y1
+            np.empty((8, 3)), np.empty(9), np.empty(4, np.int64),  # the cached cell: polynomial,
+            np.empty(4), np.empty(3), np.empty(3), np.empty(3),  # faces, index (and a missing
+            # brick); y, yt, ys, y1
             np.empty(3), np.empty(3),  # domain bounds
             np.empty((4, QMAX)),  # dense coefficients
-            np.empty((8, 3)), np.empty(9), np.empty(3, np.int64))  # a crossing step's start cell
+            np.empty((8, 3)), np.empty(9), np.empty(3, np.int64),  # a crossing step's start cell
+            # a step's start on a bricked field: point and k0, cell
+            np.empty(8), np.empty((8, 3)), np.empty(9), np.empty(3, np.int64))
 
 
 def _advance_range(start, stop, *args):
     """``_advance_lines`` with scratch arrays of its own (one set per range)."""
-    _advance_lines(start, stop, *args, *_scratch(int(args[17][M_STAGES]) + 1))
+    _advance_lines(start, stop, *args, *_scratch(int(args[18][M_STAGES]) + 1))
 
 
 def advance(launch):

@@ -12,9 +12,11 @@ one (``Launch.arrays()``, in their order): compiled code takes no Python objects
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
+
+from ..fields.bricks import NO_BRICKS
 
 
 @dataclass(frozen=True)
@@ -26,11 +28,14 @@ class FieldArrays:
     gz: np.ndarray
     period: np.ndarray  # (3,) period of each axis, 0 on a bounded one
     inv: np.ndarray  # (3,) 1 / node spacing where every axis is uniform, else zeros
-    vec: np.ndarray  # (nx, ny, nz, 3) velocity at the nodes, C-contiguous float64
+    vec: np.ndarray  # (nx, ny, nz, 3) velocity at the nodes, C-contiguous, float64 or float32;
+    # a bricked field: the pool of its resident bricks
+    bk: np.ndarray = field(default_factory=lambda: NO_BRICKS)  # a bricked field's table
+    # (fields/bricks.py), empty otherwise
 
     @classmethod
-    def of(cls, field) -> FieldArrays:
-        return cls(*field.grid.kernel_args(), field.vector)
+    def of(cls, fld) -> FieldArrays:
+        return cls(*fld.grid.kernel_args(), fld.vector)
 
 
 @dataclass(frozen=True)

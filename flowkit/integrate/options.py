@@ -52,6 +52,9 @@ class TraceOptions:
     progress     a progress bar on stderr: True always, False never, None (default) where
                  stderr is a terminal and the work is long (trace: 20 000 seeds or more;
                  evenly spaced seeding: a count of the lines once a run passes one second)
+    memory       memory budget of a trace, in bytes or as text ("4GB"); None: what the machine
+                 has free.  A vector read from a file that does not fit is read brick by brick,
+                 only where lines go, into a pool of bricks of the budget (the same lines)
     """
 
     method: str = "dopri5"
@@ -78,6 +81,7 @@ class TraceOptions:
     beta: float = 0.04
     budget: int | None = None
     progress: bool | None = None
+    memory: int | str | None = None
 
     def __post_init__(self):
         m = get_method(self.method)
@@ -131,6 +135,13 @@ class TraceOptions:
                 f"options min_factor < 1 < max_factor required, got {self.min_factor!r}, {self.max_factor!r}")
         if not (0 <= self.beta < 0.2):
             raise OptionsError(f"option beta must be in [0, 0.2), got {self.beta!r}")
+        if self.memory is not None:
+            from ..fields.stored import parse_bytes
+
+            try:
+                object.__setattr__(self, "memory", parse_bytes(self.memory))
+            except ValueError as e:
+                raise OptionsError(f"option memory: {e}") from None
         if not (0 < self.stagnation_rel < 1):
             raise OptionsError(f"option stagnation_rel must be in (0, 1), got {self.stagnation_rel!r}")
 

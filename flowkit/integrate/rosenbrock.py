@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from ..fields import Field
+from ..fields.bricks import NO_BRICKS
 from ..jit import inline, kernel
 from ..lines import Lines
 from . import kernel as K
@@ -205,8 +206,8 @@ def _event(y, y1, k, hs, ns, cf, lim_dep, d, qd, q):
 # without NRT (no reference counting of the arrays handed to the helpers; nothing allocated
 # here: the scratch arrays come from _range)
 @kernel(nogil=True)
-def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kexp, fo,
-           io, si, out_p, out_par, out_n, k, kk, coef, cf, ci, y, yt, y1, J, W, Wi, g, u, rhs, qd):
+def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, bk, alpha, gam, b, bhat, kexp,
+           fo, io, si, out_p, out_par, out_n, k, kk, coef, cf, ci, y, yt, y1, J, W, Wi, g, u, rhs, qd):
     """Trace the lines start..stop-1 one after the other into out_*[l]; their counts and
     stiffness into si[l] (``ROS_INT_STATE``).  ``gam`` is Γ with its diagonal γ; ``kexp`` the
     controller's q + 1.  One function with the loop over the lines inside, without the GIL, so
@@ -241,7 +242,7 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
                 inside = False
         sp = np.nan
         if inside:
-            _relocate(gx, gy, gz, period, inv, vec, px, py, pz, ci, cf, coef)
+            _relocate(gx, gy, gz, period, inv, vec, bk, px, py, pz, ci, cf, coef)
             sp = _fc(px, py, pz, param, cf, coef, k, np.int64(0))
         si[l, I_STATUS] = K.DONE
         if not (inside and math.isfinite(sp)):
@@ -274,7 +275,7 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
                 reason = K.R_MAXSTEPS
                 break
             # on a face moving outwards: next cell, or out of the domain
-            reason = K._onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, ci, cf, coef)
+            reason = K._onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, bk, ci, cf, coef)
             if reason >= 0:
                 break
             hs = h
@@ -327,7 +328,7 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
                     y[ev_axis] = ev_face
                     # typed: numba's SSA form gives ev_axis its literal -1 on one path
                     res = K._through_face(np.int64(ev_axis), ev_face == cf[3 + ev_axis], y, param, gx,
-                                          gy, gz, period, vec, ci, cf, coef, k)
+                                          gy, gz, period, vec, bk, ci, cf, coef, k)
                     if res == 1:
                         reason = K.R_OUT
                     elif res == 2:
@@ -357,9 +358,9 @@ def _lines(start, stop, seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b
 
 def _range(start, stop, *args):
     """``_lines`` with scratch arrays of its own (one set per range)."""
-    ns = args[10].size  # b
+    ns = args[11].size  # b
     _lines(start, stop, *args, np.empty((ns + 1, 4)), np.empty((ns, 4)), np.empty((8, 3)),
-           np.empty(9), np.empty(3, np.int64), np.empty(4), np.empty(3), np.empty(4),
+           np.empty(9), np.empty(4, np.int64), np.empty(4), np.empty(3), np.empty(4),
            np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty(3), np.empty(3),
            np.empty(4), np.empty((4, K.QMAX)))
 
@@ -369,8 +370,8 @@ def _advance(seeds, dirs, gx, gy, gz, period, inv, vec, alpha, gam, b, bhat, kex
     """Every line, on numba's thread count of Python threads: a prange loop around the line loop
     compiled it twice (its index is int64 where numba types the loop, uint64 where it lowers
     it) and built a parallel gufunc, seconds of compilation on every fresh machine."""
-    run_ranges(_range, seeds.shape[0], seeds, dirs, gx, gy, gz, period, inv, vec, alpha,
-               gam, b, bhat, kexp, fo, io, si, out_p, out_par, out_n)
+    run_ranges(_range, seeds.shape[0], seeds, dirs, gx, gy, gz, period, inv, vec, NO_BRICKS,
+               alpha, gam, b, bhat, kexp, fo, io, si, out_p, out_par, out_n)
 
 
 def run_tasks(method, setup, seeds, dirs, max_steps):

@@ -88,6 +88,7 @@ INT_STATE = Layout("si", "NI", (
     Column("I_NCROSS", 1, "accepted steps that crossed faces (P_CROSS)"),
     Column("I_KFAIL", 1, "failed crossing tries in a row"),
     Column("I_KWAIT", 1, "faces to wait before the next crossing try"),
+    Column("I_WAIT", 1, "bricked field: 1 + the brick the line waits for, 0 none"),
 ))
 FLOAT_OPTIONS = Layout("fo", "NFO", (
     Column("O_RTOL", 3, "relative tolerance per axis"),

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fields.bricks import read_whole
 from ..fields.field import Field
 from ..fields.grid import Grid
 from ..fields.interp import INSIDE
@@ -174,18 +175,21 @@ def random_in(domain, n: int, seed: int = 0, max_draws: int = 100) -> np.ndarray
     """n uniform random points in the domain of a Field, Grid, analytic field or (3, 2) bounds.
 
     For a Field, points whose cell touches a NaN node are rejected and redrawn (at most
-    ``max_draws * n`` draws in all); the result depends only on ``seed``.
+    ``max_draws * n`` draws in all), except where the field is a large file not in memory
+    (``bricks.read_whole``): reading all of it to place seeds would cost what the trace
+    saves by reading only where lines go, so there a seed in NaN data ends its line at once
+    (``seed_outside``).  The result depends only on ``seed``.
     """
     n = _count(n, "random: n")
     rng = np.random.default_rng(seed)
     lo, hi = _bounds(domain).T
-    if not isinstance(domain, Field):
+    if not isinstance(domain, Field) or not read_whole(domain):
         return _uniform(lo, hi, n, rng)
     kept, have, drawn = [], 0, 0
     while have < n and drawn < max_draws * n:
         batch = _uniform(lo, hi, n, rng)
         drawn += n
-        ok = domain.sample(batch)[1] == INSIDE
+        ok = domain.sample(batch)[1] == INSIDE  # (a large field read near the points only)
         kept.append(batch[ok])
         have += int(ok.sum())
     if have < n:

@@ -16,6 +16,9 @@ import weakref
 import numpy as np
 
 from ..fields import Field
+from ..fields import stored as _stored
+from ..fields.bricks import POOL_SHARE, BrickPool, read_whole
+from ..fields.stored import FieldMemoryError, fmt_bytes
 from ..lines import Lines
 from . import attributes as _attributes
 from . import kernel as K
@@ -50,7 +53,7 @@ def trace(field: Field, seeds, options: TraceOptions | None = None, *, backend="
         lines = parts[0]  # no copy
     else:
         lines = Lines.concatenate(parts) if parts else _empty(field, opts)
-    lines.attrs = line_attrs(field, opts, setup.path)
+    lines.attrs = {**line_attrs(field, opts, setup.path), **setup.reads()}
     return lines
 
 
@@ -72,7 +75,7 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
     try:
         setup = Setup(field, opts, backend)
         for part in _batches(field, seeds, opts, setup, batch_seeds):
-            part.attrs = line_attrs(field, opts, setup.path)
+            part.attrs = {**line_attrs(field, opts, setup.path), **setup.reads()}
             if writer is None:
                 writer = LinesWriter.like(part, path, position_dtype=position_dtype)
             writer.append(part)
@@ -80,6 +83,7 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
             empty = _empty(field, opts)
             empty.attrs = line_attrs(field, opts)
             writer = LinesWriter.like(empty, path, position_dtype=position_dtype)
+        writer.set_attrs(setup.reads())  # (over all batches)
         return writer.close()
     except BaseException:
         if writer is not None:
@@ -145,25 +149,45 @@ def _empty(field, opts) -> Lines:
     return Lines(np.zeros((0, 3)), np.zeros(1, np.int64), pd, ld)
 
 
-def typical_speed(field: Field, max_nodes: int = 1 << 17) -> float:
-    """Field.typical_speed on a strided subsample of at most ~max_nodes nodes: it only scales
-    defaults (stagnation threshold, minimum and fixed steps), and the full median costs seconds
-    on large grids (a sample of 2^20 nodes cost ~45 ms of every trace on 385^3 nodes; 2^17 ~5 ms,
-    the median of 10^5 speeds is still good to a few 0.1 %).  Kept with the field for its vector
-    array (~5 ms of every later trace through it; an array changed in place is not noticed)."""
+SPEED_NODES = 1 << 17  # every node of a field this small; else SPEED_BLOCKS^3 blocks
+SPEED_BLOCKS, SPEED_BLOCK, SPEED_ALIGN = 4, 12, 64  # per axis; nodes along a block's edge; its
+# start a multiple of this (the common chunk size: a chunked file gives a block from one chunk)
+
+
+def typical_speed(field: Field) -> float:
+    """Field.typical_speed on a sample: every node of a small field, else 64 blocks of 12^3
+    nodes spread over the grid.  It only scales defaults (stagnation threshold, minimum and
+    fixed steps), and the full median costs seconds on large grids (the median of 10^5 speeds
+    is still good to a few 0.1 %).  Blocks, not a stride: a strided sample of a chunked file
+    reads every chunk, blocks read 64 of them, so a trace under a memory budget finds the same
+    value (and the same lines) as one in memory.  Kept with the field for its vector (an array
+    changed in place is not noticed)."""
     memo = getattr(field, "_typical_speed_memo", None)
-    if memo is not None and memo[0]() is field.vector:
+    held = field._vector
+    if memo is not None and memo[0]() is held:
         return memo[1]
-    value = _sampled_speed(field, max_nodes)
-    field._typical_speed_memo = (weakref.ref(field.vector), value)
+    value = _sampled_speed(field)
+    field._typical_speed_memo = (weakref.ref(held), value)
     return value
 
 
-def _sampled_speed(field: Field, max_nodes: int) -> float:
-    shape = np.array(field.grid.shape)
-    stride = max(1, int(np.ceil((shape.prod() / max_nodes) ** (1 / 3))))
-    v = field.vector[::stride, ::stride, ::stride].astype(np.float64)  # (as float64 data's)
-    sp = np.hypot(np.hypot(v[..., 0], v[..., 1]), v[..., 2]).ravel()  # no over/underflow
+def _sampled_speed(field: Field) -> float:
+    shape = field.grid.shape
+    if np.prod(shape) <= SPEED_NODES:
+        boxes = [(slice(None),) * 3]
+    else:
+        starts = []
+        for n in shape:
+            m = min(SPEED_BLOCK, n)
+            at = {min(n - m, i * (n - m) // (SPEED_BLOCKS - 1) // SPEED_ALIGN * SPEED_ALIGN)
+                  for i in range(SPEED_BLOCKS)}
+            starts.append([slice(a, a + m) for a in sorted(at)])
+        boxes = [(sx, sy, sz) for sx in starts[0] for sy in starts[1] for sz in starts[2]]
+    sp = []
+    for box in boxes:
+        v = field.vector_box(box).astype(np.float64)  # (as float64 data's)
+        sp.append(np.hypot(np.hypot(v[..., 0], v[..., 1]), v[..., 2]).ravel())  # no overflow
+    sp = np.concatenate(sp)
     sp = sp[np.isfinite(sp) & (sp > 0)]
     return float(np.median(sp)) if sp.size else 0.0
 
@@ -190,9 +214,15 @@ class Setup:
         m = entry.explicit  # the tableau the kernel runs first; None: the entry's own driver
         self.method = m
         self.grid = g.kernel_args()
-        self.vec = field.vector
+        self.bricks = brick_pool(field, opts, backend)
+        if self.bricks is None:
+            self.vec = field.vector
+            fa = FieldArrays.of(field)
+        else:  # (read brick by brick: the explicit kernel only, brick_pool checked)
+            self.vec = None
+            fa = FieldArrays(*self.grid, self.bricks.pool, self.bricks.bk)
         # (no tableau: the entry's own driver takes the field and options from here)
-        self.arrays = FieldArrays.of(field), None if m is None else MethodArrays.of(m)
+        self.arrays = fa, None if m is None else MethodArrays.of(m)
         ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
         cell = g.min_cell_size
         vtyp = typical_speed(field)
@@ -270,12 +300,13 @@ class Setup:
         out = self.buffers(n, B)  # one allocation, reused by every pass (later ones have fewer lines)
         extra = []
         while active.size:
-            part, cols, busy = self.advance_pass(active, seeds, dirs, spacing, phase, io, sf, si,
+            ready = active if self.bricks is None else self._ready(active, si)
+            part, cols, busy = self.advance_pass(ready, seeds, dirs, spacing, phase, io, sf, si,
                                                  out)
             chunks.append(part)
             if cols is not None:
                 extra.append(cols)
-            active = active[busy]
+            active = active[busy] if ready is active else np.setdiff1d(active, ready[~busy])
         if len(chunks) == 1:  # one pass: already grouped by line, in order
             self._keep_point_data(extra, chunks[0][1], chunks[0][2], None)
             return (*chunks[0], si)
@@ -284,6 +315,38 @@ class Setup:
         t, s = t[order], s[order]
         self._keep_point_data(extra, t, s, order)
         return pts[order], t, s, owner[order], si
+
+    def _ready(self, active, si):
+        """The lines of ``active`` that can run: those waiting for no brick, and those whose
+        brick, and the brick of the cell they stand in, are resident once the most wanted
+        bricks are loaded (a line waits at a brick's face for the next one: both are read
+        when it resumes)."""
+        pool = self.bricks
+        wait = si[active, K.I_WAIT] - 1
+        waiting = wait >= 0
+        if not waiting.any():
+            return active
+        home = np.where(si[active, K.I_STATUS] == K.RUNNING,
+                        pool.brick_of(si[active, K.I_CELL:K.I_CELL + 3]), -1)
+        pool.load(np.concatenate([wait[waiting], home[waiting & (home >= 0)]]))
+
+        def ok():
+            return ~waiting | (pool.resident(np.maximum(wait, 0))
+                               & ((home < 0) | pool.resident(np.maximum(home, 0))))
+        ready = ok()
+        if not ready.any():  # the most wanted bricks split every waiting line's pair
+            i = np.flatnonzero(waiting)[0]
+            pool.load(np.array([wait[i]] + ([home[i]] if home[i] >= 0 else [])))
+            ready = ok()
+        return active[ready]
+
+    def reads(self) -> dict:
+        """Lines.attrs entries of a field read brick by brick: what was read, and the pool."""
+        b = self.bricks
+        if b is None:
+            return {}
+        return {"bricks_read": b.loads, "field_bytes_read": b.bytes_read,
+                "brick_pool_bytes": b.pool.nbytes}
 
     @property
     def path(self) -> str:
@@ -296,6 +359,33 @@ class Setup:
         if self.n_columns:
             cols = np.concatenate(extra)
             self.point_data = self.advance.point_data(t, s, cols if order is None else cols[order])
+
+
+def brick_pool(field: Field, opts: TraceOptions, backend="numba"):
+    """The BrickPool a trace reads ``field``'s vector through (brick by brick, only where lines
+    go, within the budget ``opts.memory``, else the memory free now), or None where the vector
+    is in memory already or is read whole: small, or fitting the budget where the method or
+    backend cannot read bricks."""
+    if field.vector_in_memory():
+        return None
+    stored = field.stored_vector()
+    budget = opts.memory if opts.memory is not None else _stored.available_memory()
+    fits = budget is None or stored.nbytes <= POOL_SHARE * budget
+    if fits and read_whole(field):
+        return None
+    entry = opts.entry
+    why = ("the numba backend" if backend != "numba"
+           else f"method {entry.name}" if entry.explicit is None or entry.retrace is not None
+           else "")
+    if why and fits:
+        return None
+    if why:
+        raise FieldMemoryError(
+            f"{stored.where}: {fmt_bytes(stored.nbytes)} do not fit the memory budget of "
+            f"{fmt_bytes(budget)}; a field read brick by brick is traced by the explicit "
+            f"methods on the numba backend, not {why}: give --memory "
+            f"{fmt_bytes(stored.nbytes / POOL_SHARE)} or more, or another method")
+    return BrickPool(stored, field.grid, budget)
 
 
 def _check_backend(entry, backend) -> None:
@@ -389,7 +479,7 @@ def _trace_batch(field, setup: Setup, seeds, opts: TraceOptions, id0: int) -> Li
 
     pts, t, s, owner, si = setup.run(tseeds, dirs, emit, spacing, phase, opts.budget)
     lines = _assemble(field, opts, seeds, id0, pts, t, s, owner, task_columns(si),
-                      setup.point_data)
+                      setup.point_data, setup.bricks is not None)
     if entry.retrace is not None:
         lines = _retrace_stiff(field, setup, seeds, opts, lines)
     return lines
@@ -424,7 +514,7 @@ def _retrace_stiff(field, setup, seeds, opts, lines: Lines) -> Lines:
 
 
 def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols,
-              point_data=None) -> Lines:
+              point_data=None, bricked=False) -> Lines:
     """Lines from the vertices of the tasks (grouped by task, in order along each) and per-task
     line_data columns; direction both joins task 2i (backward) and 2i + 1 (forward) through the
     seed: reason is the forward half's (``reason_backward`` the other), stiff either half's,
@@ -471,6 +561,6 @@ def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols,
         pd = point_data
     elif opts.attributes:  # the seed of every vertex only for the attribute that uses it
         seed_of = seeds[line_of] if "distance_to_seed" in opts.attributes else None
-        pd = _attributes.compute(field, opts.attributes, pts, t, s, seed_of)
+        pd = _attributes.compute(field, opts.attributes, pts, t, s, seed_of, bricked)
     return Lines(pts, offsets, pd, ld)
 

@@ -266,6 +266,12 @@ class LinesWriter:
                 ds.resize(size, axis=0)
             ds.id.write_direct_chunk((offset,) + (0,) * (ds.ndim - 1), job.result())
 
+    def set_attrs(self, attrs: dict) -> None:
+        """Run metadata known only at the end (numbers, text), written over the first's."""
+        self.attrs.update(attrs)
+        if self._file is not None:
+            _put_attrs(self._file, attrs, self.path)
+
     def close(self) -> Path:
         """Finish the file and rename it onto ``path``."""
         if self._file is None:

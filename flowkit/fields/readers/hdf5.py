@@ -210,21 +210,21 @@ def _read_paths(path, f, vector, x, y, z, u, v, w, scalars, order, periodic, per
 
 
 class H5Source(Source):
-    """A dataset of an HDF5 file, by path and name (the file opened for each slab read, so the
+    """A dataset of an HDF5 file, by path and name (the file opened for each read, so the
     Field that holds it can be pickled); ``order`` "zyx": indexed [k, j, i(, c)] in the file."""
 
     def __init__(self, path, name: str, order: str = "xyz"):
         self.path, self.name, self.order = str(path), name, order
 
-    def fill(self, out, i0, i1):
+    def fill_box(self, out, box):
         try:
             with h5py.File(self.path, "r") as f:
                 ds = f[self.name]
                 if self.order == "zyx":
-                    a = ds[:, :, i0:i1]
+                    a = ds[box[::-1]]
                     out[...] = a.transpose(2, 1, 0, *range(3, a.ndim))
                 else:
-                    ds.read_direct(out, source_sel=np.s_[i0:i1])
+                    ds.read_direct(out, source_sel=box)
         except OSError as e:
             raise ReaderError(f"{self.path}: dataset '{self.name}' unreadable (truncated or "
                               f"corrupt): {e}") from None

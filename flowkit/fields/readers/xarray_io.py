@@ -155,14 +155,14 @@ def read_zarr(path, vector="U", **opts):
 
 class XarraySource(Source):
     """A lazily indexed DataArray (a netCDF or zarr variable, a dask array) ordered x, y, z:
-    a slab is computed or read alone, never the whole array."""
+    a box is computed or read alone, never the whole array."""
 
     def __init__(self, da, where: str):
         self.da, self.where = da, where
 
-    def fill(self, out, i0, i1):
+    def fill_box(self, out, box):
         try:
-            out[...] = self.da.isel({self.da.dims[0]: slice(i0, i1)}).values
+            out[...] = self.da.isel(dict(zip(self.da.dims, box))).values
         except (OSError, ValueError, RuntimeError) as e:
             raise ReaderError(f"{self.where}: variable '{self.da.name}' unreadable: {e}") from None
 

@@ -166,7 +166,7 @@ class OpenCLAdvance:
         self._run(launch, None)
 
     def _run(self, work, bound):
-        (active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec,
+        (active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv, vec, _bk,
          mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n) = work.arrays()
         cl = self.cl
         plan = bound.plan if bound is not None else vertex.Plan((), (), ())

@@ -1,0 +1,185 @@
+"""Fields larger than a memory budget, traced brick by brick: the same lines, attributes and
+reasons as in memory, bit for bit, for every explicit method, both directions, periodic axes,
+NaN holes across brick faces, real data and lazily computed inputs; reads only where lines go,
+each brick once when they fit; clear errors where a budget cannot hold a trace."""
+
+import h5py
+import numpy as np
+import pytest
+
+from flowkit import trace
+from flowkit.cli import main
+from flowkit.fields import Field, bricks, load_field, save_field
+from flowkit.fields.analytic import ABCFlow
+from flowkit.fields.grid import Grid
+from flowkit.fields.stored import FieldMemoryError
+from flowkit.io.lines_h5 import read_lines
+
+L = 2 * np.pi
+SEEDS = np.random.default_rng(5).random((40, 3)) * L
+
+
+@pytest.fixture(autouse=True)
+def _small_files_by_bricks(monkeypatch):
+    """Files of any size read brick by brick (a file this small is read whole otherwise)."""
+    monkeypatch.setattr(bricks, "WHOLE_BYTES", 0)
+
+
+def _abc_file(path, n=24, chunk=8, periodic=False, hole=None):
+    """ABC at n^3 nodes, float32, chunked (a brick per chunk); ``hole``: a box of NaN nodes."""
+    f = ABCFlow().to_field(n, bounds=[[0, L]] * 3, periodic=periodic)
+    v = f.vector.astype(np.float32)
+    t = (np.sin(f.grid.x)[:, None, None] * np.cos(f.grid.y)[None, :, None]
+         + f.grid.z[None, None, :]).astype(np.float32)
+    if hole is not None:
+        v[hole] = np.nan
+    save_field(Field(f.grid, v, {"T": t}, source="abc"), path, compression=None)
+    with h5py.File(path, "a") as h:  # rewritten chunked: the bricks follow the chunks
+        for name, shape in (("vectors/U", (chunk,) * 3 + (3,)), ("scalars/T", (chunk,) * 3)):
+            a = h[name][...]
+            del h[name]
+            h.create_dataset(name, data=a, chunks=shape)
+    return path
+
+
+def _same(a, b):
+    np.testing.assert_array_equal(a.offsets, b.offsets)
+    np.testing.assert_array_equal(a.points, b.points)
+    for k in a.line_data:
+        np.testing.assert_array_equal(a.line_data[k], b.line_data[k], err_msg=k)
+    assert set(a.point_data) == set(b.point_data)
+    for k in a.point_data:
+        np.testing.assert_array_equal(a.point_data[k], b.point_data[k], err_msg=k)
+
+
+def _budgeted(path, seeds, budget="120kB", **kw):
+    """(lines in memory, lines under ``budget``, the budgeted field: still unread)."""
+    whole = trace(load_field(path), seeds, **kw)
+    fld = load_field(path)
+    lines = trace(fld, seeds, memory=budget, **kw)
+    assert not fld.vector_in_memory()
+    return whole, lines, fld
+
+
+CASES = {
+    "default": {"max_length": 8.0},
+    "both, attributes": {"max_length": 6.0, "direction": "both",
+                         "attributes": ["speed", "velocity", "vorticity", "T", "arc_length",
+                                        "distance_to_seed"]},
+    "plain dopri5": {"max_length": 6.0, "cell_aware": False},
+    "rk4": {"max_length": 4.0, "method": "rk4", "cell_aware": False, "step": 0.05},
+    "dop853, arc length": {"max_length": 6.0, "method": "dop853", "parameter": "arc_length"},
+    "resampled": {"max_length": 6.0, "count": 30, "direction": "both"},
+    "loose, crossing faces": {"max_length": 8.0, "rtol": 1e-3},
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_budgeted_traces_equal_traces_in_memory(case, tmp_path):
+    whole, lines, _ = _budgeted(_abc_file(tmp_path / "abc.h5"), SEEDS, **CASES[case])
+    _same(whole, lines)
+    assert lines.attrs["bricks_read"] > 0
+    assert len(lines) == len(SEEDS) and lines.offsets[-1] > 5 * len(SEEDS)
+
+
+def test_a_periodic_field_under_a_budget(tmp_path):
+    """Lines wrap around periodic axes across the bricks of both ends (the wrap cell's upper
+    corners come from node 0); vorticity's stencils wrap too."""
+    path = _abc_file(tmp_path / "abcp.h5", periodic=True)
+    assert load_field(path).grid.periodic == (True, True, True)
+    whole, lines, _ = _budgeted(path, SEEDS, max_length=15.0, attributes=["vorticity", "T"])
+    _same(whole, lines)
+    assert np.ptp(lines.points, axis=0).max() > L  # the lines did cross the seams
+
+
+def test_a_nan_hole_across_a_brick_face(tmp_path):
+    """NaN nodes on both sides of a brick face end lines there with the in-memory reason."""
+    hole = (slice(6, 11), slice(6, 11), slice(None))  # nodes 6..10: across the face at node 8
+    path = _abc_file(tmp_path / "hole.h5", hole=hole)
+    whole, lines, _ = _budgeted(path, SEEDS, max_length=10.0, direction="both",
+                                attributes=["speed"])
+    _same(whole, lines)
+    assert np.any(lines.line_data["reason"] == 6) or np.any(lines.line_data["reason_backward"] == 6)
+
+
+def test_the_heated_room_under_a_budget(tmp_path):
+    from flowkit.datasets import hotroom
+
+    fld = hotroom()
+    path = tmp_path / "room.h5"
+    save_field(fld, path)
+    b = fld.grid.bounds
+    seeds = b[:, 0] + (b[:, 1] - b[:, 0]) * np.random.default_rng(2).random((30, 3))
+    whole, lines, _lazy = _budgeted(path, seeds, budget="300kB", max_time=60.0,
+                                   attributes=["speed", "T"])
+    _same(whole, lines)
+
+
+def test_a_field_that_fits_is_read_once_and_only_where_lines_go(tmp_path):
+    """A large file (here: any) that fits the memory is still read brick by brick."""
+    path = _abc_file(tmp_path / "abc.h5")
+    n_bricks = 27  # 23 cells per axis in bricks of 8
+    corner = np.random.default_rng(1).random((20, 3)) * 1.0  # seeds near the origin
+    fld = load_field(path)
+    lines = trace(fld, corner, max_length=0.5)  # the machine's free memory: a slot per brick
+    assert not fld.vector_in_memory()
+    # each brick read at most once, only the few near the corner
+    assert 1 <= lines.attrs["bricks_read"] <= 8 < n_bricks
+    field_bytes = 24 ** 3 * 12
+    assert lines.attrs["field_bytes_read"] < field_bytes / 4
+    # lines that go everywhere: every brick, still once each
+    lines = trace(load_field(path), SEEDS, max_length=20.0)
+    assert 20 < lines.attrs["bricks_read"] <= n_bricks
+
+
+def test_the_same_lines_from_a_zarr_store_and_a_dask_dataset_under_a_budget(tmp_path):
+    xr = pytest.importorskip("xarray")
+    pytest.importorskip("dask")
+    from flowkit.fields.readers import from_xarray
+
+    f = ABCFlow().to_field(24, bounds=[[0, L]] * 3, periodic=False)
+    v = f.vector.astype(np.float32)
+    dims = ("x", "y", "z")
+    ds = xr.Dataset({c: (dims, v[..., i]) for i, c in enumerate("uvw")},
+                    coords={"x": f.grid.x, "y": f.grid.y, "z": f.grid.z}).chunk(8)
+    whole = trace(Field(f.grid, v), SEEDS, max_length=8.0)
+    fld = from_xarray(ds, source="dask")
+    _same(whole, trace(fld, SEEDS, max_length=8.0, memory="120kB"))
+    assert not fld.vector_in_memory()
+    pytest.importorskip("zarr")
+    ds.to_zarr(tmp_path / "f.zarr")
+    fld = load_field(tmp_path / "f.zarr")
+    _same(whole, trace(fld, SEEDS, max_length=8.0, memory="120kB"))
+    assert not fld.vector_in_memory()
+
+
+def test_a_budget_too_small_for_a_trace_is_a_named_error_and_leaves_no_file(tmp_path, capsys):
+    path = _abc_file(tmp_path / "abc.h5")
+    out = tmp_path / "lines.h5"
+    rc = main(["trace", str(path), "-o", str(out), "--seeds", "random:10", "--max-length", "4",
+               "--memory", "20kB"])
+    err = capsys.readouterr().err
+    assert rc == 2 and not out.exists() and "Traceback" not in err and err.count("\n") == 1
+    assert str(path) in err and "20 kB" in err and "--memory 87.5 kB" in err
+    with pytest.raises(FieldMemoryError, match="method ros34pw2"):
+        trace(load_field(path), SEEDS, memory="120kB", method="ros34pw2")
+    # with a budget that holds a trace, the CLI writes the lines and what it read
+    assert main(["trace", str(path), "-o", str(out), "--seeds", "random:10", "--max-length", "4",
+                 "--memory", "100kB", "--quiet"]) == 0
+    assert read_lines(out).attrs["bricks_read"] > 0
+
+
+def test_bricks_hold_their_cells_and_the_layer_above(tmp_path):
+    """A brick's slot holds the nodes of its cells and the next layer (from node 0 on past the
+    end of a periodic axis), NaN past the end of a bounded one."""
+    g = Grid.regular(0.0, 1.0, (10, 7, 5), periodic=(True, False, False))
+    v = np.arange(10 * 7 * 5 * 3, dtype=np.float64).reshape(10, 7, 5, 3)
+    from flowkit.fields.stored import Stored
+
+    pool = bricks.BrickPool(Stored.of(v), g, 10 ** 6, cells=(4, 4, 4))
+    pool.load(np.array([np.ravel_multi_index((2, 1, 0), tuple(pool.count))]))
+    slot = pool.table[np.ravel_multi_index((2, 1, 0), tuple(pool.count))]
+    nodes = pool.pool[slot * 5:(slot + 1) * 5]
+    # x: nodes 8, 9, then from node 0 on (periodic); y: nodes 4..6, then past the end
+    np.testing.assert_array_equal(nodes[:, :3], v[[8, 9, 0, 1, 2]][:, 4:7, 0:5])
+    assert np.isnan(nodes[:, 3:]).all()
