@@ -69,8 +69,10 @@ def register(subparsers) -> None:
     over.add_argument("--time", action=argparse.BooleanOptionalAction, default=None,
                       help="the snapshot's time (t = 2000 s) when the lines file knows it")
     over.add_argument("--scale-bar", action="store_true", help="a scale bar in world units")
-    cam = p.add_argument_group("camera (overrides the style file's [camera])")
-    cam.add_argument("--view", choices=VIEWS, help="named view: +x looks along +x, ..., iso")
+    cam = p.add_argument_group("camera (over the style file's [camera]; a direction given here, "
+                               "--view or an angle, replaces the style's whole direction)")
+    cam.add_argument("--view", choices=VIEWS, help="named view: +x looks along +x, ..., iso "
+                     "(default: the style's camera, else along the domain's thinnest axis)")
     cam.add_argument("--azimuth", type=float, help="degrees about the up axis")
     cam.add_argument("--elevation", type=float, help="degrees above the horizontal plane")
     cam.add_argument("--distance", type=float, help="eye distance from the target (default: fit)")
@@ -78,19 +80,21 @@ def register(subparsers) -> None:
     cam.add_argument("--fov", type=float, help="vertical field of view in degrees")
     cam.add_argument("--projection", choices=["perspective", "orthographic"])
     cam.add_argument("--target", help="x,y,z looked at (default: centre of the lines' bounds)")
-    cam.add_argument("--up", help="x,y,z up direction (default 0,0,1)")
+    cam.add_argument("--up", help="x,y,z up direction (default: chosen so that the domain's "
+                     "longest axis lies along the image's long side)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from ..render import create_context, default_context, load_style, render_file, save_png
+    from ..io.lines_h5 import read_lines
+    from ..render import LineRenderer, create_context, default_context, load_style, save_png
     from ..render.style import camera_from_dict
 
     size = _size(args.size)
     if args.style is not None:
         style = load_style(args.style)
     else:
-        from ..io.lines_h5 import lines_attributes, read_lines
+        from ..io.lines_h5 import lines_attributes
         from ..render.renderer import default_style
 
         names = [a for a in ("speed",) if a in lines_attributes(args.lines)]
@@ -104,7 +108,7 @@ def run(args) -> int:
             over[k] = list(v)
     # the same validation as the style file's [camera] table, naming the option
     checked = camera_from_dict("command line camera option", over)
-    camera = dataclasses.replace(style.camera, **{k: getattr(checked, k) for k in over})
+    camera = style.camera.over(**{k: getattr(checked, k) for k in over})
     if args.supersample is not None:
         style = dataclasses.replace(style, supersample=args.supersample)
     ctx = default_context() if args.context == "egl" else create_context(args.context)
@@ -116,9 +120,12 @@ def run(args) -> int:
                   "(its field had none); no time drawn", file=sys.stderr)
     if args.frames is not None:
         return _animate(args, style, size, camera, ctx)
-    image = render_file(args.lines, style, size, camera, ctx, strips=args.strips, overlays=True)
+    lines = read_lines(args.lines, attributes=style.attributes())
+    with LineRenderer(lines, ctx, strips=args.strips) as r:
+        image = r.render(style, size, camera, overlays=True)
+        used = r.camera_report(style, camera, size)
     path = save_png(image, args.output)
-    print(f"wrote {path} ({size[0]}x{size[1]})")
+    print(f"wrote {path} ({size[0]}x{size[1]}, {used})")
     return 0
 
 

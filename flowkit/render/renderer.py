@@ -150,6 +150,7 @@ class LineRenderer:
         # arc length from each run's start: the parameter of the attributes' Hermite interpolant
         self._arc = arc_parameter(self._xyz, self._starts, self._stops)
         self._frame_key = None
+        self._travel: np.ndarray | None = None
         self._ranges: dict[str, float] = {}
         self._auto: dict[tuple[str, Range], tuple[float, float]] = {}  # ranges from the data
         self._f32: dict[str, np.ndarray] = {}
@@ -327,6 +328,28 @@ class LineRenderer:
             r = self._ranges[name] = float(fin.max() - fin.min()) if fin.size else 0.0
         return r
 
+    def travel(self) -> np.ndarray:
+        """(3,) the lines' summed |dx|, |dy|, |dz| (the automatic view of a cube-like domain
+        looks along the axis the lines travel least along)."""
+        if self._travel is None:
+            d = np.abs(np.diff(self._xyz, axis=0))
+            mark = np.zeros(len(self._xyz), np.int64)  # segment i inside a run: cumsum > 0
+            np.add.at(mark, self._starts, 1)
+            np.add.at(mark, self._stops - 1, -1)
+            self._travel = d[np.cumsum(mark)[:-1] > 0].sum(axis=0) if d.size else np.zeros(3)
+        return self._travel
+
+    def camera(self, style: Style, camera: Camera | None, size) -> Camera:
+        """The camera drawn with: ``camera`` (else the style's), its automatic view made
+        explicit for these lines' bounds on a ``size`` image."""
+        return (camera or style.camera).resolve(self.bounds, *size, self.travel())
+
+    def camera_report(self, style: Style, camera: Camera | None, size) -> str:
+        """The camera drawn with, in words, for logs: "view -x up 0,0,1 (automatic)"."""
+        given = camera or style.camera
+        used = self.camera(style, given, size).describe()
+        return f"{used} (automatic)" if given.automatic else used
+
     def value_range(self, name: str, spec: Range = None) -> tuple[float, float]:
         """The range ``spec`` (None: min..max, "pA..pB": percentiles) of attribute ``name`` over
         these lines: what a style's colour or width map without numbers spans."""
@@ -465,7 +488,7 @@ class LineRenderer:
         t = self.lines.attrs.get("snapshot_time") if an.time else None
         per_px = None
         if an.scale_bar:
-            cam = (camera or style.camera).setup(self.bounds, w, h)
+            cam = self.camera(style, camera, (w, h)).setup(self.bounds, w, h)
             z = cam.view[2, :3] @ self.bounds.mean(axis=1) + cam.view[2, 3]
             per_px = cam.px_scale[0] * -z + cam.px_scale[1]
         text, _ = annotation_image((w, h), style, title=an.title, text=an.text, scale=scale,
@@ -482,7 +505,7 @@ class LineRenderer:
         style = self.resolve(style)
         flags, prog = self.prepare(style)
         attrs = style.attributes()
-        cam = (camera or style.camera).setup(self.bounds, *size)
+        cam = self.camera(style, camera, size).setup(self.bounds, *size)
         samples = self.samples_for(style)
         ms, out = self._targets(size, samples)
         target = ms or out

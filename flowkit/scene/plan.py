@@ -190,8 +190,7 @@ def explain(plan: Plan, cache=None) -> str:
         lines.append(f"style '{sname}': {where}{note}")
     for v in sc.views.values():
         lines.append(f"view '{v.name}': style '{v.style}', {v.size[0]}x{v.size[1]}, camera "
-                     f"azimuth {v.camera.azimuth:g} elevation {v.camera.elevation:g} "
-                     f"{v.camera.projection}")
+                     f"{v.camera.describe()}, {v.camera.projection}")
     outs = sc.outputs
     lines.append(f"outputs: lines {outs.lines or '(not written)'}; images {outs.images}")
     if outs.animation is not None:

@@ -294,7 +294,8 @@ def _render(plan: Plan, lines: Lines, res: SnapshotResult, out: Path, fmt: dict,
                 img = r.render(scene.styles[v.style], v.size, v.camera, overlays=True)
                 path = _out(out, scene.outputs.images.format(view=v.name, style=v.style, **fmt))
                 res.images[v.name] = save_png(img, path)
-                st.msg = f"{path} ({v.size[0]}x{v.size[1]})"
+                cam = r.camera_report(scene.styles[v.style], v.camera, v.size)
+                st.msg = f"{path} ({v.size[0]}x{v.size[1]}, {cam})"
         if scene.outputs.animation is not None:
             _animate(scene, r, res, out, fmt, report)
         res.uploaded = tuple(r.uploaded_attributes())
