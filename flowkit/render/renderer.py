@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import warnings
 from pathlib import Path
 from typing import Self
 
@@ -25,7 +26,8 @@ from ..io.atomic import atomic_path
 from ..lines import Lines
 from .camera import Camera
 from .context import default_context, is_software
-from .ranges import data_range, resolve_ranges
+from .lengths import SceneScale, resolve_lengths
+from .ranges import CLIP, data_range, fixed_ranges, resolve_ranges
 from .shader_build import (
     BIG,
     TEX_WIDTH,
@@ -151,6 +153,8 @@ class LineRenderer:
         self._arc = arc_parameter(self._xyz, self._starts, self._stops)
         self._frame_key = None
         self._travel: np.ndarray | None = None
+        self._speed: float | None = None
+        self._clip_reported: set = set()
         self._ranges: dict[str, float] = {}
         self._auto: dict[tuple[str, Range], tuple[float, float]] = {}  # ranges from the data
         self._f32: dict[str, np.ndarray] = {}
@@ -358,9 +362,60 @@ class LineRenderer:
             self._auto[key] = data_range(self._attr_values(name), spec, name)
         return self._auto[key]
 
-    def resolve(self, style: Style) -> Style:
-        """``style`` with its ranges from the data replaced by numbers (see ``ranges``)."""
-        return resolve_ranges(_as_style(style), self.value_range)
+    def resolve(self, style: Style, camera: Camera | None = None, size=(1920, 1080),
+                pixel: float = 1.0) -> Style:
+        """``style`` with its ranges from the data (``ranges``) and its lengths relative to the
+        scene (``lengths``) replaced by numbers, for ``camera`` (else the style's) on a
+        ``size`` image whose pixels are ``pixel`` output pixels wide (1 / supersample)."""
+        style = _as_style(style)
+        self._report_clipping(style)
+        style = resolve_ranges(style, self.value_range)
+        return resolve_lengths(style, self._scene_scale(style, camera, size, pixel))
+
+    def _scene_scale(self, style: Style, camera: Camera | None, size, pixel) -> SceneScale:
+        cam = self.camera(style, camera, size).setup(self.bounds, *size)
+        corners = np.array(np.meshgrid(*self.bounds)).reshape(3, -1).T
+        z = corners @ cam.view[2, :3] + cam.view[2, 3]
+        zt = float(cam.view[2, :3] @ cam.target + cam.view[2, 3])
+        speed = None
+        if "time" in style.attributes():
+            speed = self._median_speed()
+        return SceneScale(diagonal=float(np.linalg.norm(np.ptp(self.bounds, axis=1))),
+                          depth=float(np.ptp(z)),
+                          per_pixel=(cam.px_scale[0] * -zt + cam.px_scale[1]) / pixel,
+                          length_units=self.lines.attrs.get("length_units"), speed=speed)
+
+    def _median_speed(self) -> float | None:
+        """The lines' median speed (arc length over time per segment), for lengths on time."""
+        if self._speed is None:
+            t = np.asarray(self._attr_values("time"), np.float64)
+            mark = np.zeros(len(t), np.int64)  # segments inside a run
+            np.add.at(mark, self._starts, 1)
+            np.add.at(mark, self._stops - 1, -1)
+            inside = np.cumsum(mark)[:-1] > 0
+            ds = np.linalg.norm(np.diff(self._xyz, axis=0), axis=1)[inside]
+            dt = np.abs(np.diff(t))[inside]
+            ok = dt > 0
+            self._speed = float(np.median(ds[ok] / dt[ok])) if ok.any() else 0.0
+        return self._speed or None
+
+    def _report_clipping(self, style: Style) -> None:
+        """Warn once per range when a range the style fixes leaves over CLIP of the data
+        outside (a style made for other data: every line at a colormap's end)."""
+        for where, m in fixed_ranges(style):
+            key = (where, m.attribute, m.range)
+            if key in self._clip_reported:
+                continue
+            self._clip_reported.add(key)
+            v = np.asarray(self._attr_values(m.attribute), np.float64)
+            v = v[np.isfinite(v)]
+            lo, hi = sorted(m.range)
+            out = float(np.mean((v < lo) | (v > hi))) if v.size else 0.0
+            if out > CLIP:
+                warnings.warn(f"{where}.range = [{m.range[0]:g}, {m.range[1]:g}] leaves {out:.0%} "
+                              f"of '{m.attribute}' outside (the data spans {v.min():.6g} .. "
+                              f"{v.max():.6g}): leave the range out, or give percentiles "
+                              "('p2..p98'), to follow the data", stacklevel=3)
 
     def _select(self, style: Style, cam, size) -> None:
         """Upload this frame's kept vertices (ids + strip indices), unless unchanged."""
@@ -476,8 +531,8 @@ class LineRenderer:
         ``snapshot_time``), text and a scale bar at the depth of the view's target."""
         from .legend import annotation_image, composite, drawn_pixels, legend_image
 
-        style = self.resolve(style)
         h, w = image.shape[:2]
+        style = self.resolve(style, camera, (w, h))
         drawn = drawn_pixels(image, style)
         box = None
         if style.legend.show:
@@ -502,7 +557,7 @@ class LineRenderer:
     def draw(self, style: Style, size: tuple[int, int], camera: Camera | None = None):
         """Draw into the (multisampled) target of ``size`` and resolve it; no read-back."""
         ctx = self.ctx
-        style = self.resolve(style)
+        style = self.resolve(_as_style(style), camera, size, 1 / _as_style(style).supersample)
         flags, prog = self.prepare(style)
         attrs = style.attributes()
         cam = self.camera(style, camera, size).setup(self.bounds, *size)

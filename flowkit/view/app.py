@@ -330,7 +330,8 @@ class Viewer:
         """The style in effect with its automatic ranges as numbers: what is drawn, what the
         panel's range fields and the legend show."""
         if self._resolved[0] is not self.style:
-            self._resolved = (self.style, self.renderer.resolve(self.style))
+            self._resolved = (self.style, self.renderer.resolve(self.style, self.camera,
+                                                                self.scene_size))
         return self._resolved[1]
 
     def cycle_color_attribute(self) -> str | None:
