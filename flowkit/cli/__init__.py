@@ -30,12 +30,16 @@ def _show_compile_notices() -> None:
     import logging
 
     log = logging.getLogger("flowkit.compile")
-    if not log.handlers:
+    ours = [h for h in log.handlers if getattr(h, "flowkit_cli", False)]
+    if not ours:
         handler = logging.StreamHandler(sys.stderr)
+        handler.flowkit_cli = True
         handler.setFormatter(logging.Formatter("flowkit: %(message)s"))
         log.addHandler(handler)
         log.setLevel(logging.INFO)
         log.propagate = False
+    for handler in ours:  # this call's stderr (main may run again with another one)
+        handler.stream = sys.stderr  # (not setStream: it flushes the old one, maybe closed)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -16,6 +16,8 @@ import dataclasses
 import re
 import sys
 
+import numpy as np
+
 from ..render.camera import VIEWS
 from ..render.style import PLACEMENTS
 from . import CLIError
@@ -63,9 +65,11 @@ def register(subparsers) -> None:
                                 "[annotations])")
     over.add_argument("--no-legend", action="store_true", help="draw no legend")
     over.add_argument("--legend", choices=PLACEMENTS, help="where the legend goes (default auto: "
-                      "the corner where it covers the fewest lines)")
-    over.add_argument("--title", help="a title at the top")
-    over.add_argument("--text", help="free text at the bottom")
+                      "the corner where it covers the fewest lines; outside: in margins added "
+                      "to the picture, with the title and text)")
+    over.add_argument("--title", help="a title (top or bottom centre, where it covers fewer "
+                      "lines)")
+    over.add_argument("--text", help="free text (in the corner where it covers the fewest lines)")
     over.add_argument("--time", action=argparse.BooleanOptionalAction, default=None,
                       help="the snapshot's time (t = 2000 s) when the lines file knows it")
     over.add_argument("--scale-bar", action="store_true", help="a scale bar in world units")
@@ -86,11 +90,14 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    from ..io.atomic import check_output
     from ..io.lines_h5 import read_lines
     from ..render import LineRenderer, create_context, default_context, load_style, save_png
+    from ..render.renderer import check_picture
     from ..render.style import camera_from_dict
 
     size = _size(args.size)
+    check_output(args.output)  # before any work (numbered frames go beside it)
     if args.style is not None:
         style = load_style(args.style)
     else:
@@ -120,13 +127,34 @@ def run(args) -> int:
                   "(its field had none); no time drawn", file=sys.stderr)
     if args.frames is not None:
         return _animate(args, style, size, camera, ctx)
-    lines = read_lines(args.lines, attributes=style.attributes())
+    lines = drawable(read_lines(args.lines, attributes=style.attributes()), args.lines)
     with LineRenderer(lines, ctx, strips=args.strips) as r:
-        image = r.render(style, size, camera, overlays=True)
+        image = r.render(style, size, camera)
+        check_picture(image, r.resolve(style, camera, size),
+                      r.scene_scale(style, camera, size).per_pixel)
+        image = r.overlay(image, style, camera)
         used = r.camera_report(style, camera, size)
     path = save_png(image, args.output)
     print(f"wrote {path} ({size[0]}x{size[1]}, {used})")
     return 0
+
+
+def drawable(lines, path):
+    """``lines``, or a CLIError when none has two vertices (nothing to draw)."""
+    from ..integrate.trace import check_result
+    from ..io.lines_h5 import lines_attributes, read_lines
+
+    n = int((lines.n_vertices >= 2).sum())
+    reasons = np.zeros(0, np.int8)
+    if not n and "reason" in lines_attributes(path):  # (only to say why)
+        reasons = read_lines(path, attributes=["reason"]).line_data["reason"]
+    try:
+        check_result(len(lines), n, reasons)
+    except ValueError as e:
+        raise CLIError(f"{path}: nothing to draw: {e}") from None
+    if not len(lines):
+        raise CLIError(f"{path}: nothing to draw: the file holds no line")
+    return lines
 
 
 def _overlays(args, style):
@@ -160,7 +188,7 @@ def _animate(args, style, size, camera, ctx) -> int:
     if not style.animated:
         raise CLIError(f"--frames with {args.style or 'the default style'}: the style has no "
                        "band 'shape' or 'pattern' to move along the lines")
-    lines = read_lines(args.lines, attributes=style.attributes())
+    lines = drawable(read_lines(args.lines, attributes=style.attributes()), args.lines)
     with LineRenderer(lines, ctx, strips=args.strips) as r, tqdm(total=n, unit="frame", desc="render") as bar:
         paths = write_animation(render_frames(r, style, n, size, camera, True), args.output, n,
                                 args.fps, progress=bar.update)

@@ -370,9 +370,11 @@ class LineRenderer:
         style = _as_style(style)
         self._report_clipping(style)
         style = resolve_ranges(style, self.value_range)
-        return resolve_lengths(style, self._scene_scale(style, camera, size, pixel))
+        return resolve_lengths(style, self.scene_scale(style, camera, size, pixel))
 
-    def _scene_scale(self, style: Style, camera: Camera | None, size, pixel) -> SceneScale:
+    def scene_scale(self, style: Style, camera: Camera | None, size,
+                    pixel: float = 1.0) -> SceneScale:
+        """What ``style``'s relative lengths resolve against for ``camera`` on ``size``."""
         cam = self.camera(style, camera, size).setup(self.bounds, *size)
         corners = np.array(np.meshgrid(*self.bounds)).reshape(3, -1).T
         z = corners @ cam.view[2, :3] + cam.view[2, 3]
@@ -386,7 +388,10 @@ class LineRenderer:
                           length_units=self.lines.attrs.get("length_units"), speed=speed)
 
     def _median_speed(self) -> float | None:
-        """The lines' median speed (arc length over time per segment), for lengths on time."""
+        """The lines' median speed over their length (of every segment's arc length over its
+        time, weighted by its arc length: lines creeping along a wall, many short segments
+        at a crawl, do not set the speed of the lines that cross the domain), for lengths on
+        time."""
         if self._speed is None:
             t = np.asarray(self._attr_values("time"), np.float64)
             mark = np.zeros(len(t), np.int64)  # segments inside a run
@@ -395,8 +400,12 @@ class LineRenderer:
             inside = np.cumsum(mark)[:-1] > 0
             ds = np.linalg.norm(np.diff(self._xyz, axis=0), axis=1)[inside]
             dt = np.abs(np.diff(t))[inside]
-            ok = dt > 0
-            self._speed = float(np.median(ds[ok] / dt[ok])) if ok.any() else 0.0
+            ok = (dt > 0) & (ds > 0)
+            speed, weight = ds[ok] / dt[ok], ds[ok]
+            order = np.argsort(speed)
+            cum = np.cumsum(weight[order])
+            self._speed = float(speed[order][np.searchsorted(cum, 0.5 * cum[-1])]) \
+                if ok.any() else 0.0
         return self._speed or None
 
     def _report_clipping(self, style: Style) -> None:
@@ -524,34 +533,70 @@ class LineRenderer:
         return self.overlay(img, style, camera) if overlays else img
 
     def overlay(self, image: np.ndarray, style: Style, camera: Camera | None = None,
-                scale: float = 1.0) -> np.ndarray:
+                scale: float = 1.0, coverage: np.ndarray | None = None) -> np.ndarray:
         """``image`` (this renderer's picture of ``style``) with the style's legend (when its
-        ``[legend] show``), placed where it covers the fewest drawn pixels unless the style
-        says where, and its annotations: title, the snapshot's time (the lines' metadata
-        ``snapshot_time``), text and a scale bar at the depth of the view's target."""
+        ``[legend] show``) and its annotations: title, the snapshot's time (the lines' metadata
+        ``snapshot_time``), text and a scale bar at the depth of the view's target.  Each goes
+        where it covers the fewest drawn pixels (the legend: unless the style names a corner);
+        ``[legend] placement = "outside"`` widens the picture by margins that hold them all,
+        covering no line.  ``coverage``: the drawn pixels to keep off instead of the image's
+        (an animation places its overlays once, by its first frame, so they stay put)."""
         from .legend import annotation_image, composite, drawn_pixels, legend_image
 
         h, w = image.shape[:2]
         style = self.resolve(style, camera, (w, h))
-        drawn = drawn_pixels(image, style)
+        an = style.annotations
+        fs = max(10.0, min(w, h) / 24)  # the picture's text size, kept on a widened canvas
+        drawn = drawn_pixels(image, style) if coverage is None else coverage
+        if style.legend.placement == "outside":
+            image, drawn = self._margins(image, style, scale, fs)
+        size = image.shape[1], image.shape[0]
         box = None
         if style.legend.show:
-            leg, box = legend_image(style, (w, h), units=self.lines.units, scale=scale,
-                                    coverage=drawn)
+            leg, box = legend_image(style, size, units=self.lines.units, scale=scale,
+                                    coverage=drawn, text_px=fs,
+                                    placement="auto" if style.legend.placement == "outside"
+                                    else None)
             image = composite(image, leg)
-        an = style.annotations
         t = self.lines.attrs.get("snapshot_time") if an.time else None
         per_px = None
         if an.scale_bar:
             cam = self.camera(style, camera, (w, h)).setup(self.bounds, w, h)
             z = cam.view[2, :3] @ self.bounds.mean(axis=1) + cam.view[2, 3]
             per_px = cam.px_scale[0] * -z + cam.px_scale[1]
-        text, _ = annotation_image((w, h), style, title=an.title, text=an.text, scale=scale,
+        text, _ = annotation_image(size, style, title=an.title, text=an.text, scale=scale,
                                    time=None if t is None else float(t),
                                    time_origin=self.lines.attrs.get("time_origin"),
                                    world_per_pixel=per_px,
-                                   length_units=self.lines.attrs.get("length_units"), avoid=box)
+                                   length_units=self.lines.attrs.get("length_units"), avoid=box,
+                                   coverage=drawn, text_px=fs)
         return composite(image, text)
+
+    def _margins(self, image, style: Style, scale: float, fs: float):
+        """``image`` on a canvas of the background widened by a right margin for the legend,
+        a top one for the title and a bottom one for the time, text and scale bar; and the
+        canvas's coverage: the whole picture (so that auto placement keeps off it)."""
+        from .legend import legend_image
+
+        h, w = image.shape[:2]
+        an = style.annotations
+        gap = round(0.02 * min(w, h)) + 2
+        right = 0
+        if style.legend.show:
+            _, box = legend_image(style, (w, h), units=self.lines.units, scale=scale,
+                                  placement="top-left", text_px=fs)
+            right = 0 if box is None else box[2] - box[0] + 3 * gap
+        rows = sum(1 for v in (an.time and "snapshot_time" in self.lines.attrs, an.text,
+                               an.scale_bar) if v)
+        top = round(2.2 * fs * scale) + 2 * gap if an.title else 0
+        bottom = round(2.0 * fs * scale * rows) + 2 * gap if rows else 0
+        bg = np.array([round(255 * c) for c in (style.background or (0, 0, 0, 0))], np.uint8)
+        canvas = np.empty((top + h + bottom, w + right, 4), np.uint8)
+        canvas[:] = bg
+        canvas[top:top + h, :w] = image
+        covered = np.zeros(canvas.shape[:2], bool)
+        covered[top:top + h, :w] = True
+        return canvas, covered
 
     @_current
     def draw(self, style: Style, size: tuple[int, int], camera: Camera | None = None):
@@ -636,6 +681,23 @@ class LineRenderer:
         w, h = out.size
         data = out.read(components=4, alignment=1)
         return np.frombuffer(data, np.uint8).reshape(h, w, 4)[::-1].copy()
+
+
+def check_picture(image: np.ndarray, style: Style, per_pixel: float) -> None:
+    """Raise ValueError when a picture of ``style`` (resolved; before overlays) shows nothing:
+    no pixel differs from the background, or a line is wider than the image (``per_pixel``:
+    world units per pixel, for world widths), which covers it with one colour."""
+    from .legend import drawn_pixels
+
+    across = 2 * style.max_total_width * style.scale
+    px = across if style.units == "pixels" else across / per_pixel
+    if px > max(image.shape[:2]):
+        raise ValueError(f"a line is {px:.4g} pixels wide, wider than the {image.shape[1]}x"
+                         f"{image.shape[0]} image: give widths in pixels or as a fraction of "
+                         "the domain ('1/200d')")
+    if not drawn_pixels(image, style).any():
+        raise ValueError("the picture shows no line: the lines lie outside the view, or the "
+                         "style's bands are transparent or of no width")
 
 
 def render_lines(lines: Lines, style: Style | str | os.PathLike | None = None,

@@ -150,14 +150,14 @@ class Transfer:
     blend: float = 0.0
 
 
-PLACEMENTS = ("auto", "top-left", "top-right", "bottom-left", "bottom-right")
+PLACEMENTS = ("auto", "top-left", "top-right", "bottom-left", "bottom-right", "outside")
 
 
 @dataclass(frozen=True)
 class Legend:
     """``[legend]``: ``show`` it (default; drawn where the caller asks for overlays, e.g.
     ``flowkit render``) at ``placement`` ("auto": the corner where it covers the fewest drawn
-    pixels)."""
+    pixels; "outside": in a margin added to the picture, the annotations too)."""
 
     show: bool = True
     placement: str = "auto"

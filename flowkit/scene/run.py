@@ -286,15 +286,23 @@ def _out(out: Path, rel: str) -> Path:
 
 def _render(plan: Plan, lines: Lines, res: SnapshotResult, out: Path, fmt: dict, ctx, report):
     from ..render import LineRenderer, save_png
+    from ..render.renderer import check_picture
 
     scene = plan.scene
     with LineRenderer(lines, ctx) as r:
         for v in scene.views.values():
             with _Stage(res, f"render {v.name}", report) as st:
-                img = r.render(scene.styles[v.style], v.size, v.camera, overlays=True)
+                style = scene.styles[v.style]
+                img = r.render(style, v.size, v.camera)
+                try:
+                    check_picture(img, r.resolve(style, v.camera, v.size),
+                                  r.scene_scale(style, v.camera, v.size).per_pixel)
+                except ValueError as e:
+                    raise ValueError(f"view '{v.name}': {e}") from None
+                img = r.overlay(img, style, v.camera)
                 path = _out(out, scene.outputs.images.format(view=v.name, style=v.style, **fmt))
                 res.images[v.name] = save_png(img, path)
-                cam = r.camera_report(scene.styles[v.style], v.camera, v.size)
+                cam = r.camera_report(style, v.camera, v.size)
                 st.msg = f"{path} ({v.size[0]}x{v.size[1]}, {cam})"
         if scene.outputs.animation is not None:
             _animate(scene, r, res, out, fmt, report)

@@ -226,7 +226,7 @@ class Viewer:
     def _flags(self, style: Style):
         """The template flags the renderer draws ``style`` with (compiled if new)."""
         with self.ctx:
-            return self.renderer.prepare(style)[0]
+            return self.renderer.prepare(self.renderer.resolve(style))[0]  # (lengths as numbers)
 
     def _report(self, message: str) -> None:
         if message != self.error:
