@@ -13,6 +13,7 @@ from flowkit.cli import main
 from flowkit.lines import Lines
 from flowkit.render import Band, Camera, render_lines
 from flowkit.render.style import style_from_dict
+from flowkit.scene import make_plan
 from flowkit.scene.model import scene_from_dict
 
 WHITE = (1, 1, 1, 1)
@@ -90,6 +91,12 @@ def test_scene_camera_over_style_camera_over_default(tmp_path):
     plain = scene_from_dict({**doc, "styles": {"s": {"bands": [{"width": 1}]}}},
                             tmp_path / "scene.toml")
     assert plain.views["b"].camera.automatic
+    text = make_plan(sc).explain()  # the camera as the scene over the style makes it
+    assert "view 'a': style 's', 1600x900, camera azimuth 20 elevation 25, perspective" in text
+    assert "view 'b': style 's', 1600x900, camera view +x, perspective" in text
+    text = make_plan(plain).explain()  # the room is 10 x 5 x 10 m, y up: seen from above
+    assert ("camera automatic view (view +y up 0,0,1 on the field's bounds; chosen on the "
+            "lines' bounds when drawn)") in text
 
 
 def test_render_command_line_over_style_and_view_minus_x_parses(tmp_path, capsys):

@@ -118,7 +118,7 @@ class Camera:
             up = "" if self.up is None else " up " + ",".join(f"{v:g}" for v in self.up)
             return f"view {self.view}{up}"
         if self.automatic:
-            return "automatic view (along the thinnest axis of the lines' bounds)"
+            return "automatic view"
         az = AZIMUTH if self.azimuth is None else self.azimuth
         el = ELEVATION if self.elevation is None else self.elevation
         up = "" if self.up is None else " up " + ",".join(f"{v:g}" for v in self.up)
