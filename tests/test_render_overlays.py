@@ -288,3 +288,16 @@ def test_overlays_outside_widen_the_picture_and_cover_no_line():
     lut = np.rint(colormap_lut("viridis")[:, :3] * 255).astype(int)
     assert _bar_row(full, (320, 0, W, H), lut) is not None  # the colour bar in the margin
     assert np.abs(full[:top, :320, :3].astype(int) - 255).max() > 60  # the title above
+
+
+def test_tick_labels_centred_on_their_ticks_never_touch():
+    from flowkit.render.legend import fitting_ticks
+
+    def length(text):  # 12 pixels a character: "300.2" .. "300.8" would touch
+        return 12.0 * len(text)
+
+    ticks, names = fitting_ticks(300.02, 300.93, 265, length, 6)
+    at = [(t - 300.02) / (300.93 - 300.02) * 265 for t in ticks]
+    assert len(ticks) >= 2
+    for i in range(len(ticks) - 1):
+        assert at[i + 1] - at[i] >= (length(names[i]) + length(names[i + 1])) / 2 + 6, names

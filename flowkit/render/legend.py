@@ -48,6 +48,26 @@ def nice_ticks(lo: float, hi: float, n: int = 5) -> list[float]:
     return best[1]
 
 
+def fitting_ticks(lo: float, hi: float, width: float, length, gap: float):
+    """(ticks, labels): as many round ticks (5 down to 2) as fit under a bar ``width`` pixels
+    wide from ``lo`` to ``hi`` with each label (``length(text)`` pixels wide) centred on its
+    tick and ``gap`` pixels clear of its neighbours."""
+    def fits(ticks, names):
+        at = [(v - lo) / (hi - lo) * width for v in ticks]
+        half = [length(t) / 2 for t in names]
+        return all(at[i + 1] - at[i] >= half[i] + half[i + 1] + gap for i in range(len(at) - 1))
+
+    for n in (5, 4, 3, 2):
+        ticks = nice_ticks(lo, hi, n)
+        names = tick_labels(ticks)
+        if fits(ticks, names):
+            return ticks, names
+    ends = [0, len(ticks) - 1] if len(ticks) > 1 else [0]  # the first and last, else one
+    if not fits([ticks[i] for i in ends], [names[i] for i in ends]):
+        ends = [0]
+    return [ticks[i] for i in ends], [names[i] for i in ends]
+
+
 def round_down(x: float) -> float:
     """The largest 1, 2 or 5 times a power of ten not above ``x`` > 0."""
     p = 10.0 ** math.floor(math.log10(x))
@@ -179,11 +199,7 @@ def legend_image(style: Style, size: tuple[int, int], *, units: dict[str, str] |
     for m in maps:
         title = label(m.attribute, units) + ("" if isinstance(m, ColorMap) else " (width)")
         lo, hi = m.range
-        for n in (5, 4, 3, 2):  # as many ticks as fit under the bar without touching
-            ticks = nice_ticks(lo, hi, n)
-            names = tick_labels(ticks)
-            if sum(small.getlength(t) for t in names) + gap * len(names) <= bar_w:
-                break
+        ticks, names = fitting_ticks(lo, hi, bar_w, small.getlength, gap)
 
         def draw(d, x, y, m=m, title=title, lo=lo, hi=hi, ticks=ticks, names=names):
             d.text((x, y), title, font=font, fill=ink)
@@ -246,7 +262,7 @@ def legend_image(style: Style, size: tuple[int, int], *, units: dict[str, str] |
 
 
 def _bound(v: float) -> str:
-    return "-inf" if v == -math.inf else "inf" if v == math.inf else f"{v:g}"
+    return "-inf" if v == -math.inf else "inf" if v == math.inf else f"{v:.3g}"
 
 
 def _place(placement: str, size, panel, coverage, margin: int) -> Box:
