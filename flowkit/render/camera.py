@@ -14,7 +14,6 @@ FITS = ("bounds", "sphere")
 VIEWS = ("+x", "-x", "+y", "-y", "+z", "-z", "iso")
 FILL = 0.9  # fitted bounds span this fraction of the image's limiting side (room for widths)
 AZIMUTH, ELEVATION = -60.0, 25.0  # a direction given by one angle takes the other from here
-DIRECTION_KEYS = ("view", "azimuth", "elevation")
 TIE = 1.1  # axes whose extents differ by less than this factor are equally thin
 _AXES = np.eye(3)
 SETUPS_KEPT = 8  # Camera.setup results kept
@@ -99,7 +98,7 @@ class Camera:
         order = (1, 0, 2) if travel is None else tuple(np.argsort(np.asarray(travel, float),
                                                                   kind="stable"))
         look = next(a for a in order if a in thin)
-        if self.up is not None:  # a given up: the sign that puts an axis to the right
+        if self.up is not None:  # a given up: across it, the sign that puts +axes to the right
             sign = "+" if np.cross(_AXES[look], _unit(self.up)).sum() >= 0 else "-"
             return dataclasses.replace(self, view=sign + "xyz"[look])
         a, b = (r for r in range(3) if r != look)
@@ -114,24 +113,18 @@ class Camera:
 
     def describe(self) -> str:
         """The direction in words, as --explain and the render log report it."""
-        if self.view is not None:
-            up = "" if self.up is None else " up " + ",".join(f"{v:g}" for v in self.up)
-            return f"view {self.view}{up}"
         if self.automatic:
             return "automatic view"
+        up = "" if self.up is None else " up " + ",".join(f"{v:g}" for v in self.up)
+        if self.view is not None:
+            return f"view {self.view}{up}"
         az = AZIMUTH if self.azimuth is None else self.azimuth
         el = ELEVATION if self.elevation is None else self.elevation
-        up = "" if self.up is None else " up " + ",".join(f"{v:g}" for v in self.up)
         return f"azimuth {az:g} elevation {el:g}{up}"
 
     def frame(self, up=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(e1, e2, up) about ``up`` (default: the camera's own, z when it has none)."""
-        up = np.asarray(up if up is not None else self.up if self.up is not None else _AXES[2],
-                        float)
-        n = np.linalg.norm(up)
-        if not np.isfinite(n) or n == 0:
-            raise ValueError(f"camera up = {tuple(up)} must be a non-zero vector")
-        up = up / n
+        up = _unit(up if up is not None else self.up if self.up is not None else _AXES[2])
         e1 = _AXES[0]
         for a in _AXES:  # first coordinate axis not (nearly) parallel to up
             if abs(a @ up) < 0.9:

@@ -337,11 +337,15 @@ class LineRenderer:
         looks along the axis the lines travel least along)."""
         if self._travel is None:
             d = np.abs(np.diff(self._xyz, axis=0))
-            mark = np.zeros(len(self._xyz), np.int64)  # segment i inside a run: cumsum > 0
-            np.add.at(mark, self._starts, 1)
-            np.add.at(mark, self._stops - 1, -1)
-            self._travel = d[np.cumsum(mark)[:-1] > 0].sum(axis=0) if d.size else np.zeros(3)
+            self._travel = d[self._inside()].sum(axis=0) if d.size else np.zeros(3)
         return self._travel
+
+    def _inside(self) -> np.ndarray:
+        """(N - 1,) bool: whether the segment from point i to i + 1 lies inside a run."""
+        mark = np.zeros(len(self._xyz), np.int64)  # +1 at a run's start, -1 at its last point
+        np.add.at(mark, self._starts, 1)
+        np.add.at(mark, self._stops - 1, -1)
+        return np.cumsum(mark)[:-1] > 0
 
     def camera(self, style: Style, camera: Camera | None, size) -> Camera:
         """The camera drawn with: ``camera`` (else the style's), its automatic view made
@@ -394,10 +398,7 @@ class LineRenderer:
         time."""
         if self._speed is None:
             t = np.asarray(self._attr_values("time"), np.float64)
-            mark = np.zeros(len(t), np.int64)  # segments inside a run
-            np.add.at(mark, self._starts, 1)
-            np.add.at(mark, self._stops - 1, -1)
-            inside = np.cumsum(mark)[:-1] > 0
+            inside = self._inside()
             ds = np.linalg.norm(np.diff(self._xyz, axis=0), axis=1)[inside]
             dt = np.abs(np.diff(t))[inside]
             ok = (dt > 0) & (ds > 0)
@@ -554,9 +555,7 @@ class LineRenderer:
         box = None
         if style.legend.show:
             leg, box = legend_image(style, size, units=self.lines.units, scale=scale,
-                                    coverage=drawn, text_px=fs,
-                                    placement="auto" if style.legend.placement == "outside"
-                                    else None)
+                                    coverage=drawn, text_px=fs)
             image = composite(image, leg)
         t = self.lines.attrs.get("snapshot_time") if an.time else None
         per_px = None
