@@ -391,7 +391,8 @@ class Viewer:
         """The camera drawn with: pinned (``orbit.pinned``), fitted once to the scene's
         viewport by ``fit_camera``, so orbiting keeps the scale."""
         if self._fit is not None:  # fitted when first needed: at the viewport's size then
-            self._camera = orbit.pinned(self._fit, self.renderer.bounds, self.scene_size)
+            fit = self.renderer.camera(self.style, self._fit, self.scene_size)  # (as render)
+            self._camera = orbit.pinned(fit, self.renderer.bounds, self.scene_size)
             self._fit = None
         return self._camera
 
