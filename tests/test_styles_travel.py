@@ -22,6 +22,7 @@ from flowkit.lines import Lines
 from flowkit.render import Band, LineRenderer, StyleError, load_style
 from flowkit.render.lengths import SceneScale, parse, resolve_lengths
 from flowkit.render.ranges import fixed_ranges
+from flowkit.render.renderer import default_style
 from flowkit.render.style import ColorMap, WidthMap, style_from_dict
 from flowkit.scene.model import load_scene
 
@@ -35,9 +36,11 @@ ATTRS = ("speed", "T", "time", "arc_length", "distance_to_seed")
 
 
 def example_styles() -> dict[str, object]:
-    """Every style under examples/: the style files and the scene's (referenced or inline)."""
+    """Every style under examples/: the style files and the scene's (referenced or inline);
+    and what ``flowkit render`` draws without a style."""
     out = {p.relative_to(ROOT).as_posix(): load_style(p)
            for p in sorted((ROOT / "examples").rglob("*.toml")) if "[field]" not in p.read_text()}
+    out["no --style"] = default_style(["speed"])
     for p in sorted((ROOT / "examples").glob("*scene*.toml")):
         for name, s in load_scene(p).styles.items():
             out[f"{p.name}:{name}"] = s

@@ -105,7 +105,7 @@ def run(args) -> int:
         from ..render.renderer import default_style
 
         names = [a for a in ("speed",) if a in lines_attributes(args.lines)]
-        style = default_style(names, read_lines(args.lines, attributes=[]).bounds())
+        style = default_style(names)
     style = _overlays(args, style)
     over = {k: getattr(args, k) for k in ("azimuth", "elevation", "distance", "zoom", "fov",
                                           "projection", "view") if getattr(args, k) is not None}

@@ -709,7 +709,7 @@ def render_lines(lines: Lines, style: Style | str | os.PathLike | None = None,
     is given.  ``strips``: "vertex" or "geometry" shader stage builds the strips (see
     LineRenderer).  ``overlays``: draw the style's legend and annotations
     (``LineRenderer.overlay``).  To draw the same lines many times, keep a ``LineRenderer``."""
-    style = default_style(list(lines.point_data), lines.bounds()) if style is None \
+    style = default_style(list(lines.point_data)) if style is None \
         else _as_style(style)
     with LineRenderer(lines, ctx, strips=strips) as r:
         return r.render(style, size, camera, overlays)
@@ -738,21 +738,20 @@ def render_file(path: str | os.PathLike, style: Style | str | os.PathLike | None
     if style is None:
         names = [a for a in ("speed",) if a in lines_attributes(path)]
         lines = read_lines(path, attributes=names)
-        style = default_style(names, lines.bounds())
+        style = default_style(names)
     else:
         style = _as_style(style)
         lines = read_lines(path, attributes=style.attributes())
     return render_lines(lines, style, size, camera, ctx, strips, overlays)
 
 
-def default_style(attributes, bounds=None) -> Style:
+def default_style(attributes) -> Style:
     """What ``flowkit render`` draws without ``--style``: a 2.5 px core with a 1.5 px black halo
-    set back by 2 % of the ``bounds``' diagonal (so a line cuts those well behind it), the core
-    coloured by speed over its data range (viridis) when the lines have ``speed``, else white."""
+    set back by 2 % of the scene's depth range (so a line cuts those well behind it, in a room
+    or a thin cavity alike), the core coloured by speed over its data range (viridis) when the
+    lines have ``speed``, else white."""
     from .style import Band, ColorMap, LineStyle
 
-    diag = float(np.linalg.norm(np.ptp(np.asarray(bounds, float), axis=1))) if bounds is not None \
-        else 0.0
     core = ColorMap("viridis", "speed") if "speed" in attributes else (1.0, 1.0, 1.0, 1.0)
-    bands = (Band(core, 2.5), Band((0.0, 0.0, 0.0, 1.0), 1.5, depth_offset=0.02 * diag))
+    bands = (Band(core, 2.5), Band((0.0, 0.0, 0.0, 1.0), 1.5, depth_offset="1/50z"))
     return Style(styles={"default": LineStyle(bands)})
