@@ -90,3 +90,14 @@ def test_a_line_creeping_along_a_wall_stagnates_by_the_fields_typical_speed():
     lines = trace(Field(g, v), [[0.05, 0.05, 0.05]], attributes=["time"])
     assert lines.line_data["reason"].tolist() == [Reason.STAGNATION]
     assert lines.point_data["time"][-1] < 100.0  # seconds: 8 of flow, then a short creep
+
+
+def test_scene_output_directory_is_checked_before_tracing(tmp_path, capsys):
+    scene = tmp_path / "scene.toml"
+    scene.write_text('version = 1\n[field]\ndataset = "hotroom"\n[seeds]\nspec = "points:5,2,5"\n'
+                     '[trace]\nmax_length = 2.0\n[styles.s]\n[[styles.s.bands]]\nwidth = 2\n')
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert main(["scene", str(scene), "--out", str(blocker / "out"), "--no-cache"]) == 2
+    err = capsys.readouterr().err
+    assert f"output directory {blocker / 'out'}" in err and "snapshot" not in err  # no stage ran
