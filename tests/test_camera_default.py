@@ -118,3 +118,11 @@ def test_render_command_line_over_style_and_view_minus_x_parses(tmp_path, capsys
     st.write_text('version = 1\n[[bands]]\ncolor = "#000000"\nwidth = 1\n')
     assert main(["render", str(path), "--style", str(st), "-o", str(out), "--size", "160x90"]) == 0
     assert "view -x up 0,0,1 (automatic)" in capsys.readouterr().out
+
+
+def test_default_view_with_a_given_up_looks_across_it():
+    room = np.array([[0, 10], [0, 5], [0, 10]])  # y up, as the heated room
+    cam = Camera(up=(0, 1, 0)).resolve(room, 1600, 900)
+    assert cam.view in ("+x", "-x", "+z", "-z") and cam.up == (0, 1, 0)
+    s = cam.setup(room, 1600, 900)
+    assert s.view[1, :3] @ np.array([0, 1.0, 0]) == pytest.approx(1.0)  # y points up
