@@ -25,7 +25,9 @@ def trace(field, seeds, options=None, *, backend="numba", **kw) -> Lines:
     ``flowkit trace --seeds`` takes it ("line:0,0,0:1,1,1:50", "random:1000", "where:T > 302:500",
     "even:1/30d" for evenly spaced lines...; ``flowkit.integrate.seeds.SPEC_HELP``).
     ``options`` (TraceOptions) and ``kw`` (its fields, e.g. ``max_length=20``) set the trace;
-    ``backend``: "numba" (CPU, all cores), "opencl[:PLATFORM[:DEVICE]]" or a callable."""
+    ``backend``: "numba" (CPU, all cores), "opencl[:PLATFORM[:DEVICE]]" or a callable.
+    No line with two vertices (seeds all outside, a field at rest) raises EmptyResultError
+    saying why; ``empty="warn"`` warns and returns the lines instead."""
     if isinstance(seeds, str):
         from .seeding import trace_spec
 

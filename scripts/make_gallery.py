@@ -67,7 +67,8 @@ def render_seeding(size, out=OUT, **kw):
     paths = []
     for name, lines in (("seeding_random", rand), ("seeding_even", even)):
         with LineRenderer(lines) as r:
-            paths.append(save_png(r.render(style, size, overlays=True), out / f"{name}.png"))
+            paths.append(save_png(r.render(style, size, room_camera(), overlays=True),
+                                  out / f"{name}.png"))
     return paths, even, rand
 
 
@@ -81,17 +82,27 @@ def _load(path):
     return load_style(path)
 
 
-def render_gallery(lines, size, only=None, out=OUT, renderer=None):
-    """Render every gallery style (or those whose name contains ``only``); yields
-    (style path, image)."""
+def room_camera():
+    """The heated room's view (y up, seen from the front, a little above): the styles carry no
+    camera, so that they draw any dataset from its automatic view."""
+    from flowkit.render import Camera
+
+    return Camera(azimuth=-70, elevation=18, up=(0, 1, 0))
+
+
+def render_gallery(lines, size, only=None, out=OUT, renderer=None, camera="room"):
+    """Render every gallery style (or those whose name contains ``only``) with ``camera``
+    ("room": ``room_camera``; None: the automatic view); yields (style path, image)."""
     from flowkit.render import LineRenderer
+
+    camera = room_camera() if camera == "room" else camera
 
     r = renderer or LineRenderer(lines)
     try:
         for p in style_paths():
             if only and only not in p.stem:
                 continue
-            yield p, r.render(_load(p), size, overlays=True)
+            yield p, r.render(_load(p), size, camera, overlays=True)
     finally:
         if renderer is None:
             r.release()

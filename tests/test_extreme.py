@@ -9,6 +9,7 @@ from flowkit import trace
 from flowkit.fields import Field, Grid
 from flowkit.fields.analytic import LinearField, SolidBodyRotation, UniformFlow
 from flowkit.integrate.reasons import Reason
+from flowkit.integrate.trace import EmptyResultError, EmptyResultWarning
 
 TOL = {"rtol": 1e-6, "atol": 1e-6}
 AWARE = pytest.mark.parametrize("aware", [True, False], ids=["cell_aware", "plain"])
@@ -63,8 +64,8 @@ def test_critical_points(kind, aware):
     ends, exact_ok = _last(L), f.has_exact
     if kind in ("centre", "spiral"):  # closed/spiral orbits: on the exact trajectory at t = 50
         np.testing.assert_allclose(ends[2:], f.trajectory(seeds[2:], 50.0), atol=1e-4)
-    elif kind == "sink":  # stops where the speed fell below the threshold: at the sink
-        assert np.abs(ends).max() < 1e-5
+    elif kind == "sink":  # stops where the speed fell below the threshold (1e-4 of the
+        assert np.abs(ends).max() < 2e-4  # median node speed, ~0.5 here): at the sink
     else:  # leaves through the boundary, exactly on it
         assert exact_ok and np.all(np.abs(np.abs(ends[2:]).max(axis=1) - 1.0) < 1e-9)
 
@@ -86,8 +87,9 @@ def test_speeds_spanning_sixteen_decades(aware, parameter):
               max_steps=1000, **TOL)
     _check(L, [Reason.OUT_OF_DOMAIN] * 3, 1000)
     np.testing.assert_allclose(_last(L), [[1, 0.5, 0.5]] * 3, atol=1e-9)
-    # with the default threshold (1e-6 of the median node speed, 1 here) the slow seed stagnates
-    L = trace(_speeds_field(), seeds[:1], cell_aware=aware, parameter=parameter, **TOL)
+    # with the default threshold (1e-4 of the median node speed, 1 here) the slow seed stagnates
+    L = trace(_speeds_field(), seeds[:1], cell_aware=aware, parameter=parameter, empty="ignore",
+              **TOL)
     _check(L, [Reason.STAGNATION], 1)
 
 
@@ -143,7 +145,7 @@ def test_seeds_on_the_boundary_on_a_node_and_outside(aware):
     np.testing.assert_allclose(_last(L)[:5, 0], 1.0, atol=1e-12)  # along faces/edges to x = 1
     np.testing.assert_allclose(_last(L)[:5, 1:], np.array(seeds)[:5, 1:], atol=1e-12)
     # backward from the inflow face: leaves at once, one vertex (the seed)
-    L = trace(u, seeds[:2], cell_aware=aware, direction="backward", **TOL)
+    L = trace(u, seeds[:2], cell_aware=aware, direction="backward", empty="ignore", **TOL)
     _check(L, [Reason.OUT_OF_DOMAIN] * 2, 0)
     assert list(np.diff(L.offsets)) == [1, 1]
 
@@ -152,7 +154,12 @@ def test_seeds_on_the_boundary_on_a_node_and_outside(aware):
 def test_all_zero_field_stagnates(aware):
     f = SolidBodyRotation().to_field(5)
     z = Field(f.grid, np.zeros_like(f.vector))
-    L = trace(z, [[0.1, 0.2, 0.3], [0.0, 0.0, 0.0]], cell_aware=aware, max_steps=10, **TOL)
+    seeds = [[0.1, 0.2, 0.3], [0.0, 0.0, 0.0]]
+    with pytest.raises(EmptyResultError, match=r"no line has two vertices \(2 seeds; reasons: "
+                       r"stagnation 2\)"):
+        trace(z, seeds, cell_aware=aware, max_steps=10, **TOL)
+    with pytest.warns(EmptyResultWarning, match="stagnation 2"):
+        L = trace(z, seeds, cell_aware=aware, max_steps=10, empty="warn", **TOL)
     _check(L, [Reason.STAGNATION] * 2, 0)
     assert list(np.diff(L.offsets)) == [1, 1]
 

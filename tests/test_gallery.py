@@ -71,7 +71,7 @@ def test_seeding_pair_evenly_spaced_beside_random():
     imgs = []
     for lines in (even, rand):
         with LineRenderer(lines) as r:
-            imgs.append(r.render(style, SIZE))
+            imgs.append(r.render(style, SIZE, make_gallery.room_camera()))
     for img in imgs:
         bg = img[0, 0, :3].astype(int)
         assert np.any(np.abs(img[:, :, :3].astype(int) - bg) > 30, axis=2).mean() > 0.03

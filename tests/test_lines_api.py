@@ -125,7 +125,7 @@ def test_render_lines_without_a_style_uses_the_clis_default(lines):
     from flowkit.render import default_style, render_lines
 
     img = render_lines(lines, size=(160, 90))
-    same = render_lines(lines, default_style(list(lines.point_data), lines.bounds()),
+    same = render_lines(lines, default_style(list(lines.point_data)),
                         size=(160, 90))
     np.testing.assert_array_equal(img, same)
     background = img[0, 0]

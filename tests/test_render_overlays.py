@@ -180,10 +180,15 @@ def test_flowkit_render_without_a_style_works_on_every_lines_file(tmp_path, caps
 
     for path in _lines_files(tmp_path):
         out = tmp_path / f"{path.stem}.png"
+        if path.stem == "empty":  # nothing to draw: an error, and no picture
+            assert main(["render", str(path), "-o", str(out), "--size", "240x160"]) == 2
+            assert "nothing to draw: the file holds no line" in capsys.readouterr().err
+            assert not out.exists()
+            continue
         assert main(["render", str(path), "-o", str(out), "--size", "240x160"]) == 0, path
         img = np.asarray(Image.open(out))
         drawn = np.abs(img[:, :, :3].astype(int) - 255).max(axis=2) > 60
-        assert drawn.mean() > 0.01 or path.stem == "empty", path
+        assert drawn.mean() > 0.01, path
         if path.stem == "speed":  # coloured by speed, with its legend
             lut = np.rint(colormap_lut("viridis")[:, :3] * 255).astype(int)
             assert _bar_row(img, (0, 0, 240, 160), lut) is not None
@@ -237,3 +242,62 @@ def test_scale_bar_is_a_round_length_at_the_given_scale_and_keys_show_width_and_
     wedge_rows = (leg[..., :3].max(axis=2) < 60) & (leg[..., 3] > 0)
     cols = wedge_rows.sum(axis=0)
     assert cols.max() > 3  # the wedge's wide end is several rows tall
+
+
+def _top_heavy() -> Lines:
+    """Horizontal lines over the upper half of their bounds, one short line low left."""
+    parts = [straight((-1, 0, z), (1, 0, z), n=20, s=z) for z in np.linspace(0.15, 0.95, 9)]
+    return Lines.concatenate(parts + [straight((-1, 0, -0.9), (-0.5, 0, -0.9), n=5, s=0.0)])
+
+
+def test_title_and_text_go_where_they_cover_the_fewest_lines():
+    doc = {"version": 1, "background": "#ffffff", "antialias": "none",
+           "bands": [{"color": "#000000", "width": 2}], "legend": {"show": False},
+           "annotations": {"title": "Cavity", "text": "run 3", "time": False}}
+    s = style_from_dict(doc)
+    cam = Camera(azimuth=-90, elevation=0, up=(0, 0, 1), projection="orthographic")  # filled
+    with LineRenderer(_top_heavy()) as r:
+        bare = r.render(s, (320, 200), cam)
+        full = r.render(s, (320, 200), cam, overlays=True)
+    changed = np.abs(full.astype(int) - bare.astype(int)).max(axis=2) > 40
+    lines_px = np.any(bare[:, :, :3] < 128, axis=2)
+    near = np.zeros_like(lines_px)  # the lines and a few pixels around them
+    for dy in range(-4, 5):
+        near |= np.roll(lines_px, dy, axis=0)
+    assert not (changed & near).any()  # no overlay over (or touching) a line
+    assert changed[:100].sum() == 0  # the title left the top, where the lines are
+    assert changed[150:, 100:220].sum() > 20  # for the bottom centre
+    assert changed[150:, :60].sum() > 20  # the text: the free bottom corner
+
+
+def test_overlays_outside_widen_the_picture_and_cover_no_line():
+    lines = _plateaus()
+    lines.attrs = {"snapshot_time": 2000.0}
+    doc = {"version": 1, "background": "#ffffff",
+           "bands": [{"color": {"cmap": "viridis", "attribute": "s"}, "width": 3}],
+           "legend": {"placement": "outside"}, "annotations": {"title": "Heated room"}}
+    s = style_from_dict(doc)
+    with LineRenderer(lines) as r:
+        bare = r.render(s, (320, 200), FACE_ON)
+        full = r.render(s, (320, 200), FACE_ON, overlays=True)
+    H, W = full.shape[:2]
+    assert W > 320 + 60 and H > 200  # a margin right for the legend, top and bottom for text
+    top = next(y for y in range(H) if np.array_equal(full[y:y + 200, :320], bare)) \
+        if any(np.array_equal(full[y:y + 200, :320], bare) for y in range(H - 199)) else None
+    assert top is not None and top > 0  # the picture itself, untouched by any overlay
+    lut = np.rint(colormap_lut("viridis")[:, :3] * 255).astype(int)
+    assert _bar_row(full, (320, 0, W, H), lut) is not None  # the colour bar in the margin
+    assert np.abs(full[:top, :320, :3].astype(int) - 255).max() > 60  # the title above
+
+
+def test_tick_labels_centred_on_their_ticks_never_touch():
+    from flowkit.render.legend import fitting_ticks
+
+    def length(text):  # 12 pixels a character: "300.2" .. "300.8" would touch
+        return 12.0 * len(text)
+
+    ticks, names = fitting_ticks(300.02, 300.93, 265, length, 6)
+    at = [(t - 300.02) / (300.93 - 300.02) * 265 for t in ticks]
+    assert len(ticks) >= 2
+    for i in range(len(ticks) - 1):
+        assert at[i + 1] - at[i] >= (length(names[i]) + length(names[i + 1])) / 2 + 6, names

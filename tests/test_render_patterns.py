@@ -208,3 +208,25 @@ def test_cli_frames_write_numbered_pngs_and_a_looping_gif(tmp_path, capsys):
     assert "no band 'shape' or 'pattern'" in capsys.readouterr().err
     assert main([*args, "-o", str(tmp_path / "x.avi")]) == 2
     assert "-o" in capsys.readouterr().err
+
+
+def test_gif_frames_share_one_background(tmp_path):
+    """A rendered animation of many colours on white: every frame's background is the same
+    255 white (a background that changes after the first frame flickers as the GIF loops)."""
+    from PIL import Image
+    from render_scenes import helices, style
+
+    from flowkit.render import Band, ColorMap, LineRenderer
+    from flowkit.render.animate import render_frames, write_animation
+    from flowkit.render.style import Shape
+
+    s = style(Band(ColorMap("viridis", "speed"), 3.0, shape=Shape("arrow", "arc", 0.1)),
+              Band((0, 0, 0, 1), 1.0), background=(1, 1, 1, 1), supersample=2)
+    with LineRenderer(helices()) as r:
+        frames = list(render_frames(r, s, 4, (200, 120), None, False))
+    write_animation(iter(frames), tmp_path / "a.gif", 4, 10.0)
+    gif = Image.open(tmp_path / "a.gif")
+    for k in range(4):
+        gif.seek(k)
+        rgb = np.asarray(gif.convert("RGB"))
+        assert np.all(rgb[(frames[k][:, :, :3] == 255).all(axis=2)] == 255), k

@@ -22,7 +22,7 @@ REGEN = os.environ.get("FLOWKIT_REGEN_REFERENCE") == "1"
 SCENES = {
     "helix_halo_perspective": (
         style(Band((1, 1, 1, 1), 2.0), Band((0, 0, 0, 1), 1.5, depth_offset=0.15),
-              background=(0.85, 0.85, 0.85, 1)), Camera()),
+              background=(0.85, 0.85, 0.85, 1)), Camera(azimuth=-60, elevation=25)),
     "helix_colormap_width_ortho": (
         style(Band(ColorMap("viridis", "speed", (0, 1)), WidthMap("speed", (0, 1), 0.5, 3.0)),
               Band((1, 1, 1, 1), 1.0, depth_offset=0.15), background=(0.1, 0.1, 0.1, 1)),

@@ -30,12 +30,16 @@ def _show_compile_notices() -> None:
     import logging
 
     log = logging.getLogger("flowkit.compile")
-    if not log.handlers:
+    ours = [h for h in log.handlers if getattr(h, "flowkit_cli", False)]
+    if not ours:
         handler = logging.StreamHandler(sys.stderr)
+        handler.flowkit_cli = True
         handler.setFormatter(logging.Formatter("flowkit: %(message)s"))
         log.addHandler(handler)
         log.setLevel(logging.INFO)
         log.propagate = False
+    for handler in ours:  # this call's stderr (main may run again with another one)
+        handler.stream = sys.stderr  # (not setStream: it flushes the old one, maybe closed)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
@@ -44,8 +48,21 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     print(f"flowkit: warning: {message}", file=sys.stderr)
 
 
+def _join_views(argv: list[str]) -> list[str]:
+    """``--view -x`` as ``--view=-x``: argparse takes a value starting with '-' for an option."""
+    from ..render.camera import VIEWS
+
+    out = []
+    for a in argv:
+        if out and out[-1] == "--view" and a in VIEWS:
+            out[-1] = f"--view={a}"
+        else:
+            out.append(a)
+    return out
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(_join_views(sys.argv[1:] if argv is None else list(argv)))
     _show_compile_notices()
     try:
         with warnings.catch_warnings():  # (restores Python's own display after the command)

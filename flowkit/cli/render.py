@@ -16,6 +16,8 @@ import dataclasses
 import re
 import sys
 
+import numpy as np
+
 from ..render.camera import VIEWS
 from ..render.style import PLACEMENTS
 from . import CLIError
@@ -63,14 +65,18 @@ def register(subparsers) -> None:
                                 "[annotations])")
     over.add_argument("--no-legend", action="store_true", help="draw no legend")
     over.add_argument("--legend", choices=PLACEMENTS, help="where the legend goes (default auto: "
-                      "the corner where it covers the fewest lines)")
-    over.add_argument("--title", help="a title at the top")
-    over.add_argument("--text", help="free text at the bottom")
+                      "the corner where it covers the fewest lines; outside: in margins added "
+                      "to the picture, with the title and text)")
+    over.add_argument("--title", help="a title (top or bottom centre, where it covers fewer "
+                      "lines)")
+    over.add_argument("--text", help="free text (in the corner where it covers the fewest lines)")
     over.add_argument("--time", action=argparse.BooleanOptionalAction, default=None,
                       help="the snapshot's time (t = 2000 s) when the lines file knows it")
     over.add_argument("--scale-bar", action="store_true", help="a scale bar in world units")
-    cam = p.add_argument_group("camera (overrides the style file's [camera])")
-    cam.add_argument("--view", choices=VIEWS, help="named view: +x looks along +x, ..., iso")
+    cam = p.add_argument_group("camera (over the style file's [camera]; a direction given here, "
+                               "--view or an angle, replaces the style's whole direction)")
+    cam.add_argument("--view", choices=VIEWS, help="named view: +x looks along +x, ..., iso "
+                     "(default: the style's camera, else along the domain's thinnest axis)")
     cam.add_argument("--azimuth", type=float, help="degrees about the up axis")
     cam.add_argument("--elevation", type=float, help="degrees above the horizontal plane")
     cam.add_argument("--distance", type=float, help="eye distance from the target (default: fit)")
@@ -78,23 +84,28 @@ def register(subparsers) -> None:
     cam.add_argument("--fov", type=float, help="vertical field of view in degrees")
     cam.add_argument("--projection", choices=["perspective", "orthographic"])
     cam.add_argument("--target", help="x,y,z looked at (default: centre of the lines' bounds)")
-    cam.add_argument("--up", help="x,y,z up direction (default 0,0,1)")
+    cam.add_argument("--up", help="x,y,z up direction (default: chosen so that the domain's "
+                     "longest axis lies along the image's long side)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from ..render import create_context, default_context, load_style, render_file, save_png
+    from ..io.atomic import check_output
+    from ..io.lines_h5 import read_lines
+    from ..render import LineRenderer, create_context, default_context, load_style, save_png
+    from ..render.renderer import check_picture
     from ..render.style import camera_from_dict
 
     size = _size(args.size)
+    check_output(args.output)  # before any work (numbered frames go beside it)
     if args.style is not None:
         style = load_style(args.style)
     else:
-        from ..io.lines_h5 import lines_attributes, read_lines
+        from ..io.lines_h5 import lines_attributes
         from ..render.renderer import default_style
 
         names = [a for a in ("speed",) if a in lines_attributes(args.lines)]
-        style = default_style(names, read_lines(args.lines, attributes=[]).bounds())
+        style = default_style(names)
     style = _overlays(args, style)
     over = {k: getattr(args, k) for k in ("azimuth", "elevation", "distance", "zoom", "fov",
                                           "projection", "view") if getattr(args, k) is not None}
@@ -104,7 +115,7 @@ def run(args) -> int:
             over[k] = list(v)
     # the same validation as the style file's [camera] table, naming the option
     checked = camera_from_dict("command line camera option", over)
-    camera = dataclasses.replace(style.camera, **{k: getattr(checked, k) for k in over})
+    camera = style.camera.over(**{k: getattr(checked, k) for k in over})
     if args.supersample is not None:
         style = dataclasses.replace(style, supersample=args.supersample)
     ctx = default_context() if args.context == "egl" else create_context(args.context)
@@ -116,10 +127,34 @@ def run(args) -> int:
                   "(its field had none); no time drawn", file=sys.stderr)
     if args.frames is not None:
         return _animate(args, style, size, camera, ctx)
-    image = render_file(args.lines, style, size, camera, ctx, strips=args.strips, overlays=True)
+    lines = drawable(read_lines(args.lines, attributes=style.attributes()), args.lines)
+    with LineRenderer(lines, ctx, strips=args.strips) as r:
+        image = r.render(style, size, camera)
+        check_picture(image, r.resolve(style, camera, size),
+                      r.scene_scale(style, camera, size).per_pixel)
+        image = r.overlay(image, style, camera)
+        used = r.camera_report(style, camera, size)
     path = save_png(image, args.output)
-    print(f"wrote {path} ({size[0]}x{size[1]})")
+    print(f"wrote {path} ({size[0]}x{size[1]}, {used})")
     return 0
+
+
+def drawable(lines, path):
+    """``lines``, or a CLIError when none has two vertices (nothing to draw)."""
+    from ..integrate.trace import check_result
+    from ..io.lines_h5 import lines_attributes, read_lines
+
+    n = int((lines.n_vertices >= 2).sum())
+    reasons = np.zeros(0, np.int8)
+    if not n and "reason" in lines_attributes(path):  # (only to say why)
+        reasons = read_lines(path, attributes=["reason"]).line_data["reason"]
+    try:
+        check_result(len(lines), n, reasons)
+    except ValueError as e:
+        raise CLIError(f"{path}: nothing to draw: {e}") from None
+    if not len(lines):
+        raise CLIError(f"{path}: nothing to draw: the file holds no line")
+    return lines
 
 
 def _overlays(args, style):
@@ -153,7 +188,7 @@ def _animate(args, style, size, camera, ctx) -> int:
     if not style.animated:
         raise CLIError(f"--frames with {args.style or 'the default style'}: the style has no "
                        "band 'shape' or 'pattern' to move along the lines")
-    lines = read_lines(args.lines, attributes=style.attributes())
+    lines = drawable(read_lines(args.lines, attributes=style.attributes()), args.lines)
     with LineRenderer(lines, ctx, strips=args.strips) as r, tqdm(total=n, unit="frame", desc="render") as bar:
         paths = write_animation(render_frames(r, style, n, size, camera, True), args.output, n,
                                 args.fps, progress=bar.update)

@@ -61,8 +61,10 @@ def run(args) -> int:
     from ..integrate.options import TraceOptions
     from ..integrate.seeds import parse_even_spec, parse_seed_spec
     from ..integrate.trace import trace_to_file
+    from ..io.atomic import check_output
     from . import CLIError
 
+    check_output(args.output)  # before any work
     even = parse_even_spec(args.seeds)
     direction = args.direction or ("both" if even is not None else "forward")
     opts = TraceOptions(

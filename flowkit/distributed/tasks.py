@@ -91,7 +91,8 @@ def run_task(task: Task) -> dict:
         else:
             from ..integrate.trace import trace
 
-            lines = trace(open_field(task.source, task.vector), seeds, task.options)
+            lines = trace(open_field(task.source, task.vector), seeds, task.options,
+                          empty="ignore")  # one chunk of many: one outside the domain is no error
     finally:
         numba.set_num_threads(before)
     lines.line_data["seed_id"] = lines.line_data["seed_id"] + task.first

@@ -71,7 +71,7 @@ class TraceOptions:
     cell_aware: bool = True
     cross_faces: bool = True
     stagnation: float | None = None
-    stagnation_rel: float = 1e-6
+    stagnation_rel: float = 1e-4
     spacing: float | None = None
     count: int | None = None
     attributes: tuple = ()

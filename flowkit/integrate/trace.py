@@ -36,11 +36,14 @@ PROGRESS_MIN_SEEDS = 20000
 
 
 def trace(field: Field, seeds, options: TraceOptions | None = None, *, backend="numba",
-          **kw) -> Lines:
+          empty: str = "raise", **kw) -> Lines:
     """Streamlines of ``field`` from ``seeds`` ((n, 3) or (3,)); ``kw`` overrides ``options``.
 
     ``backend``: "numba" (CPU, all cores), "opencl[:PLATFORM[:DEVICE]]", or a callable that
     advances the lines of a ``launch.Launch`` as ``kernel.advance`` does.
+    ``empty``: when no line has two vertices (every seed outside the domain, a field at rest),
+    "raise" an EmptyResultError saying why, "warn" (an EmptyResultWarning) or "ignore"; the
+    lines are returned in the last two cases.
     """
     opts = resolve_options(options, kw)
     seeds = _seeds(seeds)
@@ -54,35 +57,79 @@ def trace(field: Field, seeds, options: TraceOptions | None = None, *, backend="
     else:
         lines = Lines.concatenate(parts) if parts else _empty(field, opts)
     lines.attrs = {**line_attrs(field, opts, setup.path), **setup.reads()}
+    check_result(len(seeds), int(np.count_nonzero(lines.n_vertices >= 2)),
+                 lines.line_data["reason"], empty)
     return lines
 
 
+class EmptyResultError(ValueError):
+    """A trace that gave no line of two vertices; the message says why."""
+
+
+class EmptyResultWarning(UserWarning):
+    """``trace(..., empty="warn")``: no line of two vertices."""
+
+
+EMPTY = ("raise", "warn", "ignore")
+
+
+def check_result(n_seeds: int, n_drawable: int, reasons: np.ndarray, empty: str = "raise"):
+    """Raise (or warn) when ``n_drawable`` (lines of two vertices or more) is 0, naming why:
+    no seed inside the domain, or the reasons the lines ended at their seeds."""
+    if empty not in EMPTY:
+        raise ValueError(f"empty = {empty!r}: expected one of {', '.join(EMPTY)}")
+    if n_drawable or not n_seeds or empty == "ignore":
+        return
+    codes, counts = np.unique(np.asarray(reasons), return_counts=True)
+    why = ", ".join(f"{REASON_NAMES[c]} {n}" for c, n in zip(codes, counts))
+    if codes.size and set(codes.tolist()) <= {int(K.R_SEED)}:
+        msg = (f"no seed lies inside the domain: all {n_seeds} seeds are outside it or in NaN "
+               "cells; check the seeds' coordinates against the field's bounds (flowkit info)")
+    else:
+        msg = (f"no line has two vertices ({n_seeds} seeds; reasons: {why}): the field may be at "
+               "rest where the seeds are, or the stagnation threshold too high")
+    if empty == "warn":
+        import warnings
+
+        warnings.warn(msg, EmptyResultWarning, stacklevel=3)
+    else:
+        raise EmptyResultError(msg)
+
+
 def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None, *,
-                  batch_seeds: int = 4096, position_dtype="float32", backend="numba", **kw):
+                  batch_seeds: int = 4096, position_dtype="float32", backend="numba",
+                  empty: str = "raise", **kw):
     """Trace and stream each batch of ``batch_seeds`` seeds to the HDF5 file ``path``.
 
     Peak memory is bounded by one batch, whatever the number of seeds: the pass buffer
     (40 bytes x max(16, min(1024, 32 MiB / (40 x tasks))) vertices per task, at most ~32 MiB
     unless a batch has over 52k tasks) plus the batch's vertices, held about twice while they are
     ordered, at 40 bytes each plus 8 bytes per attribute component: ~100 MB for 4096 seeds of
-    250 vertices.  The file appears atomically when complete.  Returns the path.
+    250 vertices.  The file appears atomically when complete.  Returns the path.  ``empty``: as
+    for ``trace`` (raised before the file appears).
     """
     from ..io.lines_h5 import LinesWriter
 
     opts = resolve_options(options, kw)
     seeds = _seeds(seeds)
     writer = None
+    drawable, reasons = 0, []
     try:
         setup = Setup(field, opts, backend)
         for part in _batches(field, seeds, opts, setup, batch_seeds):
             part.attrs = {**line_attrs(field, opts, setup.path), **setup.reads()}
+            drawable += int(np.count_nonzero(part.n_vertices >= 2))
+            if not drawable:  # (kept only while nothing is drawable: for the message)
+                reasons.append(part.line_data["reason"])
             if writer is None:
                 writer = LinesWriter.like(part, path, position_dtype=position_dtype)
             writer.append(part)
         if writer is None:
-            empty = _empty(field, opts)
-            empty.attrs = line_attrs(field, opts)
-            writer = LinesWriter.like(empty, path, position_dtype=position_dtype)
+            none = _empty(field, opts)
+            none.attrs = line_attrs(field, opts)
+            writer = LinesWriter.like(none, path, position_dtype=position_dtype)
+        check_result(len(seeds), drawable, np.concatenate(reasons) if reasons else
+                     np.zeros(0, np.int8), empty)
         writer.set_attrs(setup.reads())  # (over all batches)
         return writer.close()
     except BaseException:

@@ -17,6 +17,19 @@ import secrets
 from pathlib import Path
 
 
+def check_output(target: str | os.PathLike) -> Path:
+    """``target`` as a Path, or an error now, before any work, when it cannot be written: a
+    directory, a directory that does not exist or is not writable."""
+    p = Path(target)
+    if p.is_dir():
+        raise IsADirectoryError(f"{p}: is a directory, expected a file path")
+    if not p.parent.is_dir():
+        raise FileNotFoundError(f"{p}: directory {p.parent} does not exist")
+    if not os.access(p.parent, os.W_OK):
+        raise PermissionError(f"{p}: directory {p.parent} is not writable")
+    return p
+
+
 class AtomicPath:
     """A fresh temporary path beside ``target`` (same directory, so the rename is atomic).
 
@@ -26,11 +39,7 @@ class AtomicPath:
     """
 
     def __init__(self, target: str | os.PathLike):
-        self.target = Path(target)
-        if self.target.is_dir():
-            raise IsADirectoryError(f"{self.target}: is a directory, expected a file path")
-        if not self.target.parent.is_dir():
-            raise FileNotFoundError(f"{self.target}: directory {self.target.parent} does not exist")
+        self.target = check_output(target)
         token = secrets.token_hex(6)
         self.tmp = self.target.with_name(f".{self.target.stem}.{token}.tmp{self.target.suffix}")
         self.done = False

@@ -34,12 +34,21 @@ def frame_styles(style: Style, n: int) -> list[Style]:
 def render_frames(renderer: LineRenderer, style: Style, n: int, size=(1920, 1080),
                   camera: Camera | None = None, overlays: bool = False) -> Iterator[np.ndarray]:
     """Yield the ``n`` (H, W, 4) uint8 frames one at a time (a long animation never sits in
-    memory as a whole); ``overlays``: each with the style's legend and annotations."""
+    memory as a whole); ``overlays``: each with the style's legend and annotations, placed by
+    the first frame's lines so that they stay put."""
+    from .legend import drawn_pixels
+
     if not style.animated:
         raise ValueError("the style has no shape or colour pattern to move: an animation would "
                          "repeat one picture (add a band 'shape' or 'pattern')")
+    coverage = None
     for s in frame_styles(style, n):
-        yield renderer.render(s, size, camera, overlays)
+        img = renderer.render(s, size, camera)
+        if overlays:
+            if coverage is None:
+                coverage = drawn_pixels(img, s)
+            img = renderer.overlay(img, s, camera, coverage=coverage)
+        yield img
 
 
 def frame_paths(path: str | os.PathLike, n: int) -> list[Path]:
@@ -79,15 +88,29 @@ def write_animation(frames: Iterable[np.ndarray], path: str | os.PathLike, n: in
         return [path]
     from PIL import Image
 
-    images = []
-    for img in frames:  # GIF: the first frame's palette for all (no flicker); alpha onto white
+    images, palette = [], None
+    for img in frames:  # GIF: the first frame's palette for all; alpha onto white
         rgb = img[:, :, :3].astype(np.float32)
         a = img[:, :, 3:4].astype(np.float32) / 255.0
-        flat = Image.fromarray(np.rint(rgb * a + 255.0 * (1.0 - a)).astype(np.uint8), "RGB")
-        images.append(flat.quantize(256, dither=Image.Dither.NONE) if not images else
-                      flat.quantize(palette=images[0], dither=Image.Dither.NONE))
+        flat = np.rint(rgb * a + 255.0 * (1.0 - a)).astype(np.uint8)
+        if palette is None:
+            q = Image.fromarray(flat, "RGB").quantize(256, dither=Image.Dither.NONE)
+            palette = np.array(q.getpalette()[:3 * 256], np.uint8).reshape(-1, 3)
+        frame = Image.fromarray(nearest_colours(flat, palette), "P")
+        frame.putpalette(palette.ravel().tolist())
+        images.append(frame)
         tick()
     with atomic_path(path) as tmp:
         images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
                        duration=round(1000.0 / fps), loop=0, optimize=False)
     return [path]
+
+
+def nearest_colours(rgb: np.ndarray, palette: np.ndarray) -> np.ndarray:
+    """(H, W) uint8 index of the nearest ``palette`` colour of every pixel, exactly and the
+    same for every frame (Pillow's ``quantize(palette=)`` looks colours up at reduced
+    precision: a white background came out 252 on every frame after the first, which
+    flickered); computed once per distinct colour."""
+    colours, inverse = np.unique(rgb.reshape(-1, 3), axis=0, return_inverse=True)
+    d = ((colours[:, None, :].astype(np.int32) - palette[None, :, :].astype(np.int32)) ** 2).sum(2)
+    return np.argmin(d, axis=1).astype(np.uint8)[inverse.ravel()].reshape(rgb.shape[:2])

@@ -4,6 +4,7 @@ default; perspective or orthographic.  Matrices are float64 numpy, column-vector
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -12,6 +13,8 @@ import numpy as np
 FITS = ("bounds", "sphere")
 VIEWS = ("+x", "-x", "+y", "-y", "+z", "-z", "iso")
 FILL = 0.9  # fitted bounds span this fraction of the image's limiting side (room for widths)
+AZIMUTH, ELEVATION = -60.0, 25.0  # a direction given by one angle takes the other from here
+TIE = 1.1  # axes whose extents differ by less than this factor are equally thin
 _AXES = np.eye(3)
 SETUPS_KEPT = 8  # Camera.setup results kept
 _SETUPS: dict[tuple, CameraSetup] = {}
@@ -24,7 +27,9 @@ class Camera:
     is a right-handed frame with e1 the first coordinate axis not parallel to ``up``.  With
     ``up = (0, 0, 1)``: azimuth -90, elevation 0 looks along +y, x to the right, z up.
     ``view``: a named view instead of azimuth/elevation, as ParaView's buttons: "+x" looks along
-    +x (from the -x side), ..., "iso" looks along (-1, -1, -1).
+    +x (from the -x side), ..., "iso" looks along (-1, -1, -1).  No view and no angle: the
+    automatic view (``resolve``): along the domain's thinnest axis, its longest other axis along
+    the image's long side.  One angle alone takes the other from AZIMUTH, ELEVATION.
     ``up`` None: the coordinate axis (z, then y, then x) that lays the domain's longest axis
     along the image's long side.  ``distance`` (perspective) or the view height (orthographic)
     None: fitted.  ``fit = "bounds"`` (default) fits the bounds' corners as projected on the
@@ -37,8 +42,8 @@ class Camera:
     parallel scale; None: fitted.  ``zoom`` > 1 magnifies (a fitted distance, or the view
     height).  ``fov`` is the vertical field of view (perspective)."""
 
-    azimuth: float = -60.0
-    elevation: float = 25.0
+    azimuth: float | None = None
+    elevation: float | None = None
     distance: float | None = None
     target: tuple[float, float, float] | None = None
     up: tuple[float, float, float] | None = None
@@ -61,14 +66,65 @@ class Camera:
             raise ValueError(f"camera view = {self.view!r} is not allowed; expected one of "
                              f"{', '.join(VIEWS)}")
 
+    @property
+    def automatic(self) -> bool:
+        """No view direction given: ``resolve`` chooses it from the bounds."""
+        return self.view is None and self.azimuth is None and self.elevation is None
+
+    def over(self, **changes) -> Camera:
+        """This camera with ``changes`` (keys of a camera given at a higher precedence: command
+        line over scene over style).  A direction replaces the whole direction: a view clears
+        the angles, an angle the view, so a lower level's named view never wins silently."""
+        if "view" in changes:
+            changes.setdefault("azimuth", None)
+            changes.setdefault("elevation", None)
+        elif "azimuth" in changes or "elevation" in changes:
+            changes["view"] = None
+        return dataclasses.replace(self, **changes)
+
+    def resolve(self, bounds, width: int, height: int, travel=None) -> Camera:
+        """The camera with the automatic view made explicit (a named view and, unless given, an
+        up); any other camera unchanged.  The automatic view looks along the thinnest axis of
+        ``bounds`` (of equally thin ones: the one the lines travel least along, ``travel`` (3,)
+        summed |dx|, |dy|, |dz|, when given; else y, x, z: a side view), with the longest other
+        axis along the image's long side, pointing right or up (right-handed); the fit then
+        fills the frame."""
+        if not self.automatic:
+            return self
+        ext = np.ptp(np.asarray(bounds, float), axis=1)
+        ext = np.where(np.isfinite(ext), ext, 0.0)
+        axes = [a for a in range(3) if self.up is None or abs(_AXES[a] @ _unit(self.up)) < 0.9]
+        thin = [a for a in axes if ext[a] <= TIE * min(ext[axes])]
+        order = (1, 0, 2) if travel is None else tuple(np.argsort(np.asarray(travel, float),
+                                                                  kind="stable"))
+        look = next(a for a in order if a in thin)
+        if self.up is not None:  # a given up: across it, the sign that puts +axes to the right
+            sign = "+" if np.cross(_AXES[look], _unit(self.up)).sum() >= 0 else "-"
+            return dataclasses.replace(self, view=sign + "xyz"[look])
+        a, b = (r for r in range(3) if r != look)
+        short = a if ext[a] < ext[b] else b
+        long_ = a + b - short
+        up_axis, right_axis = (short, long_) if width >= height else (long_, short)
+        if 2 in (a, b) and max(ext[a], ext[b]) <= TIE * min(ext[a], ext[b]):
+            up_axis, right_axis = 2, a + b - 2  # two equal axes: z stays up
+        f = np.cross(_AXES[up_axis], _AXES[right_axis])  # right-handed: right = f x up
+        return dataclasses.replace(self, view=("+" if f[look] > 0 else "-") + "xyz"[look],
+                                   up=tuple(float(v) for v in _AXES[up_axis]))
+
+    def describe(self) -> str:
+        """The direction in words, as --explain and the render log report it."""
+        if self.automatic:
+            return "automatic view"
+        up = "" if self.up is None else " up " + ",".join(f"{v:g}" for v in self.up)
+        if self.view is not None:
+            return f"view {self.view}{up}"
+        az = AZIMUTH if self.azimuth is None else self.azimuth
+        el = ELEVATION if self.elevation is None else self.elevation
+        return f"azimuth {az:g} elevation {el:g}{up}"
+
     def frame(self, up=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(e1, e2, up) about ``up`` (default: the camera's own, z when it has none)."""
-        up = np.asarray(up if up is not None else self.up if self.up is not None else _AXES[2],
-                        float)
-        n = np.linalg.norm(up)
-        if not np.isfinite(n) or n == 0:
-            raise ValueError(f"camera up = {tuple(up)} must be a non-zero vector")
-        up = up / n
+        up = _unit(up if up is not None else self.up if self.up is not None else _AXES[2])
         e1 = _AXES[0]
         for a in _AXES:  # first coordinate axis not (nearly) parallel to up
             if abs(a @ up) < 0.9:
@@ -85,13 +141,16 @@ class Camera:
         if self.view is not None:
             return -float(self.view[0] + "1") * _AXES["xyz".index(self.view[1])]
         e1, e2, up = self.frame(up)
-        az, el = math.radians(self.azimuth), math.radians(self.elevation)
+        az = math.radians(AZIMUTH if self.azimuth is None else self.azimuth)
+        el = math.radians(ELEVATION if self.elevation is None else self.elevation)
         return math.cos(el) * math.cos(az) * e1 + math.cos(el) * math.sin(az) * e2 + math.sin(el) * up
 
     def choose_up(self, bounds, width: int, height: int) -> np.ndarray:
         """The camera's up, or when it has none the first of z, y, x (not along the view) that
         shows the domain's longest axis more along the image's long side than its short one;
         failing all, the one showing it most so."""
+        if self.automatic:
+            return self.resolve(bounds, width, height).choose_up(bounds, width, height)
         if self.up is not None:
             return np.asarray(self.up, float)
         ext = np.ptp(np.asarray(bounds, float), axis=1)
@@ -116,6 +175,8 @@ class Camera:
         The last few are kept (a viewer frame asks for the same one several times: scene,
         overlays, picking); their arrays are read-only."""
         b = np.asarray(bounds, float)
+        if self.automatic:
+            return self.resolve(b, width, height).setup(b, width, height)
         try:
             key = (self, b.tobytes(), b.shape, int(width), int(height))
             hit = _SETUPS.get(key)
@@ -222,6 +283,14 @@ def _fit_distance(x, y, z, tan_y, aspect, radius, recentre: bool = True):
         lo, hi = (mid, hi) if span > FILL or edge > 0.96 else (lo, mid)
     dist = max(hi, radius * 1e-6)
     return dist, tuple(float(v) for v in extents(dist)[2])
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, float)
+    n = np.linalg.norm(v)
+    if not np.isfinite(n) or n == 0:
+        raise ValueError(f"camera up = {tuple(v)} must be a non-zero vector")
+    return v / n
 
 
 def _screen_axes(d: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..fields.field import date_of
 from .colormaps import colormap_lut
-from .style import PLACEMENTS, ColorMap, Style, WidthMap
+from .style import ColorMap, Style, WidthMap
 
 Box = tuple[int, int, int, int]  # x0, y0, x1, y1 (pixels, y down, x1/y1 exclusive)
 
@@ -46,6 +46,26 @@ def nice_ticks(lo: float, hi: float, n: int = 5) -> list[float]:
         if best is None or score < best[0]:
             best = (score, [k * step for k in range(k0, k1 + 1)])
     return best[1]
+
+
+def fitting_ticks(lo: float, hi: float, width: float, length, gap: float):
+    """(ticks, labels): as many round ticks (5 down to 2) as fit under a bar ``width`` pixels
+    wide from ``lo`` to ``hi`` with each label (``length(text)`` pixels wide) centred on its
+    tick and ``gap`` pixels clear of its neighbours."""
+    def fits(ticks, names):
+        at = [(v - lo) / (hi - lo) * width for v in ticks]
+        half = [length(t) / 2 for t in names]
+        return all(at[i + 1] - at[i] >= half[i] + half[i + 1] + gap for i in range(len(at) - 1))
+
+    for n in (5, 4, 3, 2):
+        ticks = nice_ticks(lo, hi, n)
+        names = tick_labels(ticks)
+        if fits(ticks, names):
+            return ticks, names
+    ends = [0, len(ticks) - 1] if len(ticks) > 1 else [0]  # the first and last, else one
+    if not fits([ticks[i] for i in ends], [names[i] for i in ends]):
+        ends = [0]
+    return [ticks[i] for i in ends], [names[i] for i in ends]
 
 
 def round_down(x: float) -> float:
@@ -127,7 +147,8 @@ def drawn_pixels(image: np.ndarray, style: Style) -> np.ndarray:
     """(H, W) bool: the pixels of a picture of ``style`` that differ from its background (what
     "auto" placement keeps the legend off)."""
     bg = np.array([round(255 * c) for c in (style.background or (0, 0, 0, 0))], int)
-    return np.abs(image.astype(int) - bg).max(axis=2) > 16
+    k = 4 if style.background is None else 3  # on an opaque background the colour tells
+    return np.abs(image[:, :, :k].astype(int) - bg[:k]).max(axis=2) > 16
 
 
 def legend_key(style: Style) -> tuple:
@@ -178,11 +199,7 @@ def legend_image(style: Style, size: tuple[int, int], *, units: dict[str, str] |
     for m in maps:
         title = label(m.attribute, units) + ("" if isinstance(m, ColorMap) else " (width)")
         lo, hi = m.range
-        for n in (5, 4, 3, 2):  # as many ticks as fit under the bar without touching
-            ticks = nice_ticks(lo, hi, n)
-            names = tick_labels(ticks)
-            if sum(small.getlength(t) for t in names) + gap * len(names) <= bar_w:
-                break
+        ticks, names = fitting_ticks(lo, hi, bar_w, small.getlength, gap)
 
         def draw(d, x, y, m=m, title=title, lo=lo, hi=hi, ticks=ticks, names=names):
             d.text((x, y), title, font=font, fill=ink)
@@ -245,7 +262,7 @@ def legend_image(style: Style, size: tuple[int, int], *, units: dict[str, str] |
 
 
 def _bound(v: float) -> str:
-    return "-inf" if v == -math.inf else "inf" if v == math.inf else f"{v:g}"
+    return "-inf" if v == -math.inf else "inf" if v == math.inf else f"{v:.3g}"
 
 
 def _place(placement: str, size, panel, coverage, margin: int) -> Box:
@@ -254,15 +271,15 @@ def _place(placement: str, size, panel, coverage, margin: int) -> Box:
     corners = {"top-left": (margin, margin), "top-right": (w - pw - margin, margin),
                "bottom-left": (margin, h - ph - margin),
                "bottom-right": (w - pw - margin, h - ph - margin)}
-    if placement == "auto":
+    if placement in ("auto", "outside"):  # (outside: the caller widened the canvas)
         if coverage is None:
             placement = "top-right"
         else:
             def covered(xy):
                 x, y = max(xy[0], 0), max(xy[1], 0)
                 return int(coverage[y:y + ph, x:x + pw].sum())
-            # ties: the order of PLACEMENTS' corners after "auto"
-            placement = min(PLACEMENTS[1:], key=lambda k: covered(corners[k]))
+            # ties: the order of the corners in PLACEMENTS
+            placement = min(corners, key=lambda k: covered(corners[k]))
     x, y = corners[placement]
     x, y = max(x, 0), max(y, 0)
     return x, y, min(x + pw, w), min(y + ph, h)
@@ -278,56 +295,91 @@ def time_label(t: float, origin: str | None = None) -> str:
 def annotation_image(size: tuple[int, int], style: Style, *, title: str = "",
                      time: float | None = None, time_origin: str | None = None, text: str = "",
                      world_per_pixel: float | None = None, length_units: str | None = None,
-                     scale: float = 1.0, avoid: Box | None = None) -> tuple[np.ndarray, Box | None]:
-    """Title (top centre), the time (``time_label``) and free text (bottom, the side away from
-    ``avoid``, e.g. the legend's box), and with ``world_per_pixel`` a scale bar of a round
-    length in world units labelled with ``length_units``. Returns (RGBA uint8 (H, W, 4), the
-    box around all of them) or an empty image and None when there is nothing to draw."""
+                     scale: float = 1.0, avoid: Box | None = None,
+                     coverage: np.ndarray | None = None,
+                     text_px: float | None = None) -> tuple[np.ndarray, Box | None]:
+    """Title, the time (``time_label``) and free text, and with ``world_per_pixel`` a scale bar
+    of a round length in world units labelled with ``length_units``.  The title goes top or
+    bottom centre, the rest (stacked, the scale bar lowest) in a corner: where they cover the
+    fewest pixels of ``coverage`` ((H, W) bool, the drawn pixels) and not ``avoid`` (e.g. the
+    legend's box); without ``coverage``, top centre and the bottom corner away from ``avoid``.
+    ``text_px``: the text size instead of 1/24 of the smaller side.  Returns (RGBA uint8
+    (H, W, 4), the box around all of them) or an empty image and None when there is nothing."""
     from PIL import Image, ImageDraw
 
     w, h = (int(v) for v in size)
     img = Image.new("RGBA", (w, h), (0, 0, 0, 0))
     d = ImageDraw.Draw(img)
-    fs = max(10.0, min(w, h) / 24) * scale
+    fs = (text_px or max(10.0, min(w, h) / 24)) * scale
     font, big = text_font(fs), text_font(1.3 * fs)
     fill, ink = _colours(style)
     margin, pad = round(0.02 * min(w, h)), round(0.3 * fs)
+    taken = [avoid] if avoid is not None else []
     boxes = []
 
-    def put(xy, s, f):
-        b = d.textbbox(xy, s, font=f)
-        b = (b[0] - pad, b[1] - pad, b[2] + pad, b[3] + pad)
-        d.rounded_rectangle(b, radius=pad, fill=fill)
-        d.text(xy, s, font=f, fill=ink)
-        boxes.append(b)
+    def cost(box) -> float:
+        """Drawn pixels under ``box``, anything taken under it counting as all covered."""
+        x0, y0, x1, y1 = (round(v) for v in box)
+        hit = sum(1 for t in taken if x0 < t[2] and t[0] < x1 and y0 < t[3] and t[1] < y1)
+        under = coverage[max(y0, 0):max(y1, 0), max(x0, 0):max(x1, 0)].sum() if coverage is \
+            not None else 0
+        return float(under) + hit * (x1 - x0) * (y1 - y0) + 1.0
 
     if title:
-        tw = d.textlength(title, font=big)
-        put(((w - tw) / 2, margin), title, big)
-    left = avoid is None or avoid[0] > w / 2  # the legend is on the right: annotate on the left
+        tb = d.textbbox((0, 0), title, font=big)
+        tw = tb[2] - tb[0]
+        spots = [((w - tw) / 2, margin - tb[1] + pad), ((w - tw) / 2, h - margin - pad - tb[3])]
+        x, y = spots[0] if coverage is None else min(spots, key=lambda xy: cost(
+            (xy[0] - pad, xy[1] + tb[1] - pad, xy[0] + tw + pad, xy[1] + tb[3] + pad)))
+        b = (x - pad, y + tb[1] - pad, x + tw + pad, y + tb[3] + pad)
+        d.rounded_rectangle(b, radius=pad, fill=fill)
+        d.text((x, y), title, font=big, fill=ink)
+        boxes.append(b)
+        taken.append(b)
+    # the stack: text lines (top down), then the scale bar; sizes first, then a corner
     lines = [s for s in (time_label(time, time_origin) if time is not None else "", text) if s]
-    y = h - margin
+    rows = []  # (width, height, draw(x, y): y its top)
+    for s in lines:
+        tb = d.textbbox((0, 0), s, font=font)
+
+        def put(x, y, s=s, tb=tb):
+            b = (x - pad, y - pad, x + tb[2] - tb[0] + pad, y + tb[3] - tb[1] + pad)
+            d.rounded_rectangle(b, radius=pad, fill=fill)
+            d.text((x - tb[0], y - tb[1]), s, font=font, fill=ink)
+        rows.append((tb[2] - tb[0], tb[3] - tb[1], put))
     if world_per_pixel is not None and world_per_pixel > 0 and math.isfinite(world_per_pixel):
         length = round_down(0.2 * w * world_per_pixel)
         px = length / world_per_pixel
         s = f"{length:g} {length_units}" if length_units else f"{length:g}"
         bh = max(3, round(0.25 * fs))
-        x0 = margin + pad if left else w - margin - pad - px
         tb = d.textbbox((0, 0), s, font=font)
-        y_bar = y - pad - bh
-        y_txt = y_bar - (tb[3] - tb[1]) - pad
-        d.rounded_rectangle((x0 - pad, y_txt - pad, x0 + px + pad, y), radius=pad, fill=fill)
-        d.rectangle((x0, y_bar, x0 + px, y_bar + bh), fill=ink)
-        d.text((x0 + px / 2 - d.textlength(s, font=font) / 2, y_txt - tb[1]), s, font=font,
-               fill=ink)
-        boxes.append((round(x0 - pad), round(y_txt - pad), round(x0 + px + pad), y))
-        y = y_txt - 3 * pad
-    for s in reversed(lines):
-        tb = d.textbbox((0, 0), s, font=font)
-        x = margin + pad if left else w - margin - pad - (tb[2] - tb[0])
-        y -= tb[3] - tb[1] + pad
-        put((x, y - tb[1]), s, font)
-        y -= 3 * pad
+
+        def bar(x, y, s=s, tb=tb, px=px, bh=bh):
+            d.rounded_rectangle((x - pad, y - pad, x + px + pad, y + tb[3] - tb[1] + 2 * pad + bh),
+                                radius=pad, fill=fill)
+            d.text((x + px / 2 - d.textlength(s, font=font) / 2, y - tb[1]), s, font=font,
+                   fill=ink)
+            yb = y + tb[3] - tb[1] + pad
+            d.rectangle((x, yb, x + px, yb + bh), fill=ink)
+        rows.append((px, tb[3] - tb[1] + pad + bh, bar))
+    if rows:
+        bw = max(r[0] for r in rows) + 2 * pad
+        bh_all = sum(r[1] + 2 * pad for r in rows) + pad * (len(rows) - 1)
+        xs = {"left": margin, "right": w - margin - bw}
+        ys = {"bottom": h - margin - bh_all, "top": margin}
+        away, near = ("left", "right") if avoid is None or avoid[0] > w / 2 else ("right", "left")
+        # in order of preference on ties: the bottom corner away from the legend first
+        corners = {f"{v}-{u}": (xs[u], ys[v]) for v in ("bottom", "top") for u in (away, near)}
+        key = next(iter(corners))
+        if coverage is not None:
+            key = min(corners, key=lambda k: cost((*corners[k], corners[k][0] + bw,
+                                                   corners[k][1] + bh_all)))
+        x0, y = corners[key]
+        right = key.endswith("right")
+        for rw, rh, draw in rows:
+            draw(x0 + pad + (bw - 2 * pad - rw if right else 0), y + pad)
+            y += rh + 3 * pad
+        boxes.append((x0, corners[key][1], x0 + bw, corners[key][1] + bh_all))
     if not boxes:
         return np.asarray(img).copy(), None
     box = (max(0, min(b[0] for b in boxes)), max(0, min(b[1] for b in boxes)),

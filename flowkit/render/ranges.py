@@ -11,6 +11,8 @@ import numpy as np
 
 from .style import Band, ColorMap, Range, Style, StyleError, WidthMap, percentiles
 
+CLIP = 0.05  # a fixed range leaving more of the data outside is reported
+
 
 def data_range(values: np.ndarray, spec: Range, name: str = "attribute") -> tuple[float, float]:
     """(low, high) of the finite ``values`` for ``spec`` (None: min..max, "pA..pB": percentiles;
@@ -37,6 +39,18 @@ def _band_maps(ls):
         for m in (b.color, b.width, b.pattern.color if b.pattern is not None else None):
             if isinstance(m, (ColorMap, WidthMap)):
                 yield m
+
+
+def fixed_ranges(style: Style):
+    """(where, map) of the colour and width maps with a range fixed in numbers, in the line
+    styles drawn; ``where`` names the key as a style file spells it ("band 1 color")."""
+    for n in style.used_styles():
+        for i, b in enumerate(style.styles[n].bands):
+            where = f"style '{n}' band {i + 1}" if len(style.styles) > 1 else f"band {i + 1}"
+            pc = b.pattern.color if b.pattern is not None else None
+            for key, m in (("color", b.color), ("width", b.width), ("pattern.color", pc)):
+                if isinstance(m, (ColorMap, WidthMap)) and isinstance(m.range, tuple):
+                    yield f"{where} {key}", m
 
 
 def resolve_ranges(style: Style, range_of: Callable[[str, Range], tuple[float, float]]) -> Style:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import warnings
 from pathlib import Path
 from typing import Self
 
@@ -25,7 +26,8 @@ from ..io.atomic import atomic_path
 from ..lines import Lines
 from .camera import Camera
 from .context import default_context, is_software
-from .ranges import data_range, resolve_ranges
+from .lengths import SceneScale, resolve_lengths
+from .ranges import CLIP, data_range, fixed_ranges, resolve_ranges
 from .shader_build import (
     BIG,
     TEX_WIDTH,
@@ -150,6 +152,9 @@ class LineRenderer:
         # arc length from each run's start: the parameter of the attributes' Hermite interpolant
         self._arc = arc_parameter(self._xyz, self._starts, self._stops)
         self._frame_key = None
+        self._travel: np.ndarray | None = None
+        self._speed: float | None = None
+        self._clip_reported: set = set()
         self._ranges: dict[str, float] = {}
         self._auto: dict[tuple[str, Range], tuple[float, float]] = {}  # ranges from the data
         self._f32: dict[str, np.ndarray] = {}
@@ -327,6 +332,32 @@ class LineRenderer:
             r = self._ranges[name] = float(fin.max() - fin.min()) if fin.size else 0.0
         return r
 
+    def travel(self) -> np.ndarray:
+        """(3,) the lines' summed |dx|, |dy|, |dz| (the automatic view of a cube-like domain
+        looks along the axis the lines travel least along)."""
+        if self._travel is None:
+            d = np.abs(np.diff(self._xyz, axis=0))
+            self._travel = d[self._inside()].sum(axis=0) if d.size else np.zeros(3)
+        return self._travel
+
+    def _inside(self) -> np.ndarray:
+        """(N - 1,) bool: whether the segment from point i to i + 1 lies inside a run."""
+        mark = np.zeros(len(self._xyz), np.int64)  # +1 at a run's start, -1 at its last point
+        np.add.at(mark, self._starts, 1)
+        np.add.at(mark, self._stops - 1, -1)
+        return np.cumsum(mark)[:-1] > 0
+
+    def camera(self, style: Style, camera: Camera | None, size) -> Camera:
+        """The camera drawn with: ``camera`` (else the style's), its automatic view made
+        explicit for these lines' bounds on a ``size`` image."""
+        return (camera or style.camera).resolve(self.bounds, *size, self.travel())
+
+    def camera_report(self, style: Style, camera: Camera | None, size) -> str:
+        """The camera drawn with, in words, for logs: "view -x up 0,0,1 (automatic)"."""
+        given = camera or style.camera
+        used = self.camera(style, given, size).describe()
+        return f"{used} (automatic)" if given.automatic else used
+
     def value_range(self, name: str, spec: Range = None) -> tuple[float, float]:
         """The range ``spec`` (None: min..max, "pA..pB": percentiles) of attribute ``name`` over
         these lines: what a style's colour or width map without numbers spans."""
@@ -335,9 +366,66 @@ class LineRenderer:
             self._auto[key] = data_range(self._attr_values(name), spec, name)
         return self._auto[key]
 
-    def resolve(self, style: Style) -> Style:
-        """``style`` with its ranges from the data replaced by numbers (see ``ranges``)."""
-        return resolve_ranges(_as_style(style), self.value_range)
+    def resolve(self, style: Style, camera: Camera | None = None, size=(1920, 1080),
+                pixel: float = 1.0) -> Style:
+        """``style`` with its ranges from the data (``ranges``) and its lengths relative to the
+        scene (``lengths``) replaced by numbers, for ``camera`` (else the style's) on a
+        ``size`` image whose pixels are ``pixel`` output pixels wide (1 / supersample)."""
+        style = _as_style(style)
+        self._report_clipping(style)
+        style = resolve_ranges(style, self.value_range)
+        return resolve_lengths(style, self.scene_scale(style, camera, size, pixel))
+
+    def scene_scale(self, style: Style, camera: Camera | None, size,
+                    pixel: float = 1.0) -> SceneScale:
+        """What ``style``'s relative lengths resolve against for ``camera`` on ``size``."""
+        cam = self.camera(style, camera, size).setup(self.bounds, *size)
+        corners = np.array(np.meshgrid(*self.bounds)).reshape(3, -1).T
+        z = corners @ cam.view[2, :3] + cam.view[2, 3]
+        zt = float(cam.view[2, :3] @ cam.target + cam.view[2, 3])
+        speed = None
+        if "time" in style.attributes():
+            speed = self._median_speed()
+        return SceneScale(diagonal=float(np.linalg.norm(np.ptp(self.bounds, axis=1))),
+                          depth=float(np.ptp(z)),
+                          per_pixel=(cam.px_scale[0] * -zt + cam.px_scale[1]) / pixel,
+                          length_units=self.lines.attrs.get("length_units"), speed=speed)
+
+    def _median_speed(self) -> float | None:
+        """The lines' median speed over their length (of every segment's arc length over its
+        time, weighted by its arc length: lines creeping along a wall, many short segments
+        at a crawl, do not set the speed of the lines that cross the domain), for lengths on
+        time."""
+        if self._speed is None:
+            t = np.asarray(self._attr_values("time"), np.float64)
+            inside = self._inside()
+            ds = np.linalg.norm(np.diff(self._xyz, axis=0), axis=1)[inside]
+            dt = np.abs(np.diff(t))[inside]
+            ok = (dt > 0) & (ds > 0)
+            speed, weight = ds[ok] / dt[ok], ds[ok]
+            order = np.argsort(speed)
+            cum = np.cumsum(weight[order])
+            self._speed = float(speed[order][np.searchsorted(cum, 0.5 * cum[-1])]) \
+                if ok.any() else 0.0
+        return self._speed or None
+
+    def _report_clipping(self, style: Style) -> None:
+        """Warn once per range when a range the style fixes leaves over CLIP of the data
+        outside (a style made for other data: every line at a colormap's end)."""
+        for where, m in fixed_ranges(style):
+            key = (where, m.attribute, m.range)
+            if key in self._clip_reported:
+                continue
+            self._clip_reported.add(key)
+            v = np.asarray(self._attr_values(m.attribute), np.float64)
+            v = v[np.isfinite(v)]
+            lo, hi = sorted(m.range)
+            out = float(np.mean((v < lo) | (v > hi))) if v.size else 0.0
+            if out > CLIP:
+                warnings.warn(f"{where}.range = [{m.range[0]:g}, {m.range[1]:g}] leaves {out:.0%} "
+                              f"of '{m.attribute}' outside (the data spans {v.min():.6g} .. "
+                              f"{v.max():.6g}): leave the range out, or give percentiles "
+                              "('p2..p98'), to follow the data", stacklevel=3)
 
     def _select(self, style: Style, cam, size) -> None:
         """Upload this frame's kept vertices (ids + strip indices), unless unchanged."""
@@ -446,43 +534,77 @@ class LineRenderer:
         return self.overlay(img, style, camera) if overlays else img
 
     def overlay(self, image: np.ndarray, style: Style, camera: Camera | None = None,
-                scale: float = 1.0) -> np.ndarray:
+                scale: float = 1.0, coverage: np.ndarray | None = None) -> np.ndarray:
         """``image`` (this renderer's picture of ``style``) with the style's legend (when its
-        ``[legend] show``), placed where it covers the fewest drawn pixels unless the style
-        says where, and its annotations: title, the snapshot's time (the lines' metadata
-        ``snapshot_time``), text and a scale bar at the depth of the view's target."""
+        ``[legend] show``) and its annotations: title, the snapshot's time (the lines' metadata
+        ``snapshot_time``), text and a scale bar at the depth of the view's target.  Each goes
+        where it covers the fewest drawn pixels (the legend: unless the style names a corner);
+        ``[legend] placement = "outside"`` widens the picture by margins that hold them all,
+        covering no line.  ``coverage``: the drawn pixels to keep off instead of the image's
+        (an animation places its overlays once, by its first frame, so they stay put)."""
         from .legend import annotation_image, composite, drawn_pixels, legend_image
 
-        style = self.resolve(style)
         h, w = image.shape[:2]
-        drawn = drawn_pixels(image, style)
+        style = self.resolve(style, camera, (w, h))
+        an = style.annotations
+        fs = max(10.0, min(w, h) / 24)  # the picture's text size, kept on a widened canvas
+        drawn = drawn_pixels(image, style) if coverage is None else coverage
+        if style.legend.placement == "outside":
+            image, drawn = self._margins(image, style, scale, fs)
+        size = image.shape[1], image.shape[0]
         box = None
         if style.legend.show:
-            leg, box = legend_image(style, (w, h), units=self.lines.units, scale=scale,
-                                    coverage=drawn)
+            leg, box = legend_image(style, size, units=self.lines.units, scale=scale,
+                                    coverage=drawn, text_px=fs)
             image = composite(image, leg)
-        an = style.annotations
         t = self.lines.attrs.get("snapshot_time") if an.time else None
         per_px = None
         if an.scale_bar:
-            cam = (camera or style.camera).setup(self.bounds, w, h)
+            cam = self.camera(style, camera, (w, h)).setup(self.bounds, w, h)
             z = cam.view[2, :3] @ self.bounds.mean(axis=1) + cam.view[2, 3]
             per_px = cam.px_scale[0] * -z + cam.px_scale[1]
-        text, _ = annotation_image((w, h), style, title=an.title, text=an.text, scale=scale,
+        text, _ = annotation_image(size, style, title=an.title, text=an.text, scale=scale,
                                    time=None if t is None else float(t),
                                    time_origin=self.lines.attrs.get("time_origin"),
                                    world_per_pixel=per_px,
-                                   length_units=self.lines.attrs.get("length_units"), avoid=box)
+                                   length_units=self.lines.attrs.get("length_units"), avoid=box,
+                                   coverage=drawn, text_px=fs)
         return composite(image, text)
+
+    def _margins(self, image, style: Style, scale: float, fs: float):
+        """``image`` on a canvas of the background widened by a right margin for the legend,
+        a top one for the title and a bottom one for the time, text and scale bar; and the
+        canvas's coverage: the whole picture (so that auto placement keeps off it)."""
+        from .legend import legend_image
+
+        h, w = image.shape[:2]
+        an = style.annotations
+        gap = round(0.02 * min(w, h)) + 2
+        right = 0
+        if style.legend.show:
+            _, box = legend_image(style, (w, h), units=self.lines.units, scale=scale,
+                                  placement="top-left", text_px=fs)
+            right = 0 if box is None else box[2] - box[0] + 3 * gap
+        rows = sum(1 for v in (an.time and "snapshot_time" in self.lines.attrs, an.text,
+                               an.scale_bar) if v)
+        top = round(2.2 * fs * scale) + 2 * gap if an.title else 0
+        bottom = round(2.0 * fs * scale * rows) + 2 * gap if rows else 0
+        bg = np.array([round(255 * c) for c in (style.background or (0, 0, 0, 0))], np.uint8)
+        canvas = np.empty((top + h + bottom, w + right, 4), np.uint8)
+        canvas[:] = bg
+        canvas[top:top + h, :w] = image
+        covered = np.zeros(canvas.shape[:2], bool)
+        covered[top:top + h, :w] = True
+        return canvas, covered
 
     @_current
     def draw(self, style: Style, size: tuple[int, int], camera: Camera | None = None):
         """Draw into the (multisampled) target of ``size`` and resolve it; no read-back."""
         ctx = self.ctx
-        style = self.resolve(style)
+        style = self.resolve(_as_style(style), camera, size, 1 / _as_style(style).supersample)
         flags, prog = self.prepare(style)
         attrs = style.attributes()
-        cam = (camera or style.camera).setup(self.bounds, *size)
+        cam = self.camera(style, camera, size).setup(self.bounds, *size)
         samples = self.samples_for(style)
         ms, out = self._targets(size, samples)
         target = ms or out
@@ -560,6 +682,23 @@ class LineRenderer:
         return np.frombuffer(data, np.uint8).reshape(h, w, 4)[::-1].copy()
 
 
+def check_picture(image: np.ndarray, style: Style, per_pixel: float) -> None:
+    """Raise ValueError when a picture of ``style`` (resolved; before overlays) shows nothing:
+    no pixel differs from the background, or a line is wider than the image (``per_pixel``:
+    world units per pixel, for world widths), which covers it with one colour."""
+    from .legend import drawn_pixels
+
+    across = 2 * style.max_total_width * style.scale
+    px = across if style.units == "pixels" else across / per_pixel
+    if px > max(image.shape[:2]):
+        raise ValueError(f"a line is {px:.4g} pixels wide, wider than the {image.shape[1]}x"
+                         f"{image.shape[0]} image: give widths in pixels or as a fraction of "
+                         "the domain ('1/200d')")
+    if not drawn_pixels(image, style).any():
+        raise ValueError("the picture shows no line: the lines lie outside the view, or the "
+                         "style's bands are transparent or of no width")
+
+
 def render_lines(lines: Lines, style: Style | str | os.PathLike | None = None,
                  size=(1920, 1080), camera: Camera | None = None,
                  ctx: moderngl.Context | None = None, strips: str = "vertex",
@@ -570,7 +709,7 @@ def render_lines(lines: Lines, style: Style | str | os.PathLike | None = None,
     is given.  ``strips``: "vertex" or "geometry" shader stage builds the strips (see
     LineRenderer).  ``overlays``: draw the style's legend and annotations
     (``LineRenderer.overlay``).  To draw the same lines many times, keep a ``LineRenderer``."""
-    style = default_style(list(lines.point_data), lines.bounds()) if style is None \
+    style = default_style(list(lines.point_data)) if style is None \
         else _as_style(style)
     with LineRenderer(lines, ctx, strips=strips) as r:
         return r.render(style, size, camera, overlays)
@@ -599,21 +738,20 @@ def render_file(path: str | os.PathLike, style: Style | str | os.PathLike | None
     if style is None:
         names = [a for a in ("speed",) if a in lines_attributes(path)]
         lines = read_lines(path, attributes=names)
-        style = default_style(names, lines.bounds())
+        style = default_style(names)
     else:
         style = _as_style(style)
         lines = read_lines(path, attributes=style.attributes())
     return render_lines(lines, style, size, camera, ctx, strips, overlays)
 
 
-def default_style(attributes, bounds=None) -> Style:
+def default_style(attributes) -> Style:
     """What ``flowkit render`` draws without ``--style``: a 2.5 px core with a 1.5 px black halo
-    set back by 2 % of the ``bounds``' diagonal (so a line cuts those well behind it), the core
-    coloured by speed over its data range (viridis) when the lines have ``speed``, else white."""
+    set back by 2 % of the scene's depth range (so a line cuts those well behind it, in a room
+    or a thin cavity alike), the core coloured by speed over its data range (viridis) when the
+    lines have ``speed``, else white."""
     from .style import Band, ColorMap, LineStyle
 
-    diag = float(np.linalg.norm(np.ptp(np.asarray(bounds, float), axis=1))) if bounds is not None \
-        else 0.0
     core = ColorMap("viridis", "speed") if "speed" in attributes else (1.0, 1.0, 1.0, 1.0)
-    bands = (Band(core, 2.5), Band((0.0, 0.0, 0.0, 1.0), 1.5, depth_offset=0.02 * diag))
+    bands = (Band(core, 2.5), Band((0.0, 0.0, 0.0, 1.0), 1.5, depth_offset="1/50z"))
     return Style(styles={"default": LineStyle(bands)})

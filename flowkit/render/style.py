@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .camera import FITS, VIEWS, Camera
+from .lengths import FORMS as LENGTH_FORMS
+from .lengths import parse as parse_length
 from .shapes import SHAPE_NAMES
 
 STYLE_VERSION = 1
@@ -100,7 +102,9 @@ class Pattern:
 class Band:
     """One band, mirrored on both sides of the centre line.  ``width`` is the width on ONE side
     (band 0 spans [-w0, w0], band 1 spans w0..w0+w1 on each side), in the style's units.
-    ``depth_offset`` pushes the band away from the viewer, in view-space (world) units.
+    ``depth_offset`` pushes the band away from the viewer, in view-space (world) units.  Each
+    length may instead be relative to the scene ("2px", "1/200d", "0.1z", "0.05 m": see
+    ``lengths``), made a number before drawing.
     ``shape`` multiplies the width by f(s) (so an inner band's shape moves the outer bands);
     ``pattern`` switches between the band's colour and a second one."""
 
@@ -112,6 +116,7 @@ class Band:
 
     @property
     def max_width(self) -> float:
+        """(Relative lengths resolved: see lengths.resolve_lengths.)"""
         return max(self.width.min, self.width.max) if isinstance(self.width, WidthMap) else self.width
 
 
@@ -145,14 +150,14 @@ class Transfer:
     blend: float = 0.0
 
 
-PLACEMENTS = ("auto", "top-left", "top-right", "bottom-left", "bottom-right")
+PLACEMENTS = ("auto", "top-left", "top-right", "bottom-left", "bottom-right", "outside")
 
 
 @dataclass(frozen=True)
 class Legend:
     """``[legend]``: ``show`` it (default; drawn where the caller asks for overlays, e.g.
     ``flowkit render``) at ``placement`` ("auto": the corner where it covers the fewest drawn
-    pixels)."""
+    pixels; "outside": in a margin added to the picture, the annotations too)."""
 
     show: bool = True
     placement: str = "auto"
@@ -280,6 +285,15 @@ _RANGE_ALLOWED = ("[low, high] (two different finite numbers), 'pA..pB' (percent
                   "0 <= A < B <= 100, e.g. 'p2..p98'), or no range (the data's min to max)")
 
 
+def _length(where, key, v, lo: float = 0.0, lo_open: bool = False) -> float | str:
+    """A style length: a number (>= ``lo``) or a relative string (``lengths``)."""
+    if isinstance(v, str):
+        if parse_length(v) is None:
+            _fail(where, key, v, LENGTH_FORMS)
+        return v
+    return _number(where, key, v, lo, lo_open=lo_open)
+
+
 def _range(where, key, v, auto: bool = False) -> Range:
     """A [low, high] pair; with ``auto`` also None or a percentile string (from the data)."""
     if auto and (v is None or percentiles(v) is not None):
@@ -331,16 +345,16 @@ def validate(style: Style) -> None:
             if isinstance(b.width, WidthMap):
                 _name(bw, "width.attribute", b.width.attribute)
                 _range(bw, "width.range", b.width.range, auto=True)
-                _number(bw, "width.min", b.width.min, 0.0)
-                _number(bw, "width.max", b.width.max, 0.0)
+                _length(bw, "width.min", b.width.min)
+                _length(bw, "width.max", b.width.max)
             else:
-                _number(bw, "width", b.width, 0.0)
-            _number(bw, "depth_offset", b.depth_offset, 0.0)
+                _length(bw, "width", b.width)
+            _length(bw, "depth_offset", b.depth_offset)
             if b.shape is not None:
                 _check_shape(bw, b.shape)
             if b.pattern is not None:
                 _check_pattern(bw, b.pattern)
-        if ls.total_width <= 0:
+        if not _relative(ls) and ls.total_width <= 0:
             _fail(f"{w}.{sname}", "bands", "total width 0", "a positive total width")
     if style.transfer is not None:
         _check_transfer(w, style.transfer, style.styles)
@@ -375,7 +389,7 @@ def _check_shape(where, sh: Shape) -> None:
         _fail(where, "shape.name", sh.name, ", ".join(map(repr, SHAPE_NAMES)) + " or 'custom' "
               "(or give points = [[s, f], ...])")
     _name(where, "shape.attribute", sh.attribute)
-    _number(where, "shape.length", sh.length, 0.0, lo_open=True)
+    _length(where, "shape.length", sh.length, 0.0, lo_open=True)
     if sh.name != "custom":
         if sh.points:
             _fail(where, "shape.points", list(sh.points), f"no points for the built-in '{sh.name}'")
@@ -403,17 +417,25 @@ def _check_pattern(where, pt: Pattern) -> None:
         _fail(where, "pattern", pt, "a Pattern")
     _check_color(where, "pattern.color", pt.color)
     _name(where, "pattern.attribute", pt.attribute)
-    _number(where, "pattern.length", pt.length, 0.0, lo_open=True)
+    _length(where, "pattern.length", pt.length, 0.0, lo_open=True)
     _number(where, "pattern.slope", pt.slope)
     _number(where, "pattern.curve", pt.curve, 0.0, lo_open=True)
     _number(where, "pattern.fraction", pt.fraction, 0.0, 1.0)
 
 
-def _bound(where, key, v) -> float:
-    """A transfer range bound: a number, or +-inf (TOML ``inf``) for an open end."""
+def _bound(where, key, v) -> float | str:
+    """A transfer range bound: a number, +-inf (TOML ``inf``) for an open end, or a relative
+    length (on a length or time attribute)."""
     if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isinf(v):
         return float(v)
-    return _number(where, key, v)
+    return _length(where, key, v, -math.inf) if isinstance(v, str) else _number(where, key, v)
+
+
+def _relative(ls: LineStyle) -> bool:
+    """Whether some width of ``ls`` is relative (its total is known only when drawn)."""
+    return any(isinstance(w, str) for b in ls.bands
+               for w in ((b.width.min, b.width.max) if isinstance(b.width, WidthMap)
+                         else (b.width,)))
 
 
 def _check_transfer(where, tf: Transfer, styles: dict) -> None:
@@ -430,6 +452,8 @@ def _check_transfer(where, tf: Transfer, styles: dict) -> None:
         if not isinstance(r.range, (list, tuple)) or len(r.range) != 2:
             _fail(rw, "range", r.range, "[low, high] (inf allowed)")
         lo, hi = (_bound(rw, f"range[{k}]", x) for k, x in enumerate(r.range))
+        if isinstance(lo, str) or isinstance(hi, str):  # relative: ordered when drawn
+            continue
         if not lo < hi:
             _fail(rw, "range", list(r.range), "[low, high] with low < high")
         if r.style is not None and r.style not in styles:
@@ -492,7 +516,8 @@ def _shape_from(where: str, t) -> Shape:
                          "or 'points' (a user shape)")
     sh = Shape(name, t.get("attribute", "arc_length"), t.get("length", 1.0), pts)
     _check_shape(where, sh)
-    return Shape(sh.name, sh.attribute, float(sh.length),
+    length = sh.length if isinstance(sh.length, str) else float(sh.length)
+    return Shape(sh.name, sh.attribute, length,
                  tuple((float(a), float(b)) for a, b in sh.points))
 
 
@@ -503,9 +528,9 @@ def _pattern_from(where: str, t) -> Pattern:
         raise StyleError(f"{where}.pattern: missing key 'color' (the second colour of the pattern)")
     pt = Pattern(_color_from(where, "pattern.color", t["color"]),
                  t.get("attribute", "arc_length"),
+                 _length(where, "pattern.length", t.get("length", 1.0), 0.0, lo_open=True),
                  *(_number(where, f"pattern.{k}", t.get(k, d))
-                   for k, d in (("length", 1.0), ("slope", 0.0), ("curve", 1.0),
-                                ("fraction", 0.5))))
+                   for k, d in (("slope", 0.0), ("curve", 1.0), ("fraction", 0.5))))
     _check_pattern(where, pt)
     return pt
 
@@ -522,7 +547,7 @@ def _transfer_from(where: str, t) -> Transfer:
     ranges = []
     for i, r in enumerate(t["ranges"]):
         _check_keys(f"{tw} range {i + 1}", r, {"range", "style"})
-        if "range" not in r or isinstance(r["range"], str):
+        if "range" not in r or isinstance(r["range"], str):  # (bounds may be lengths: '1/8d')
             got = f" = {r['range']!r}" if "range" in r else " is missing"
             raise StyleError(f"{tw} range {i + 1}: range{got}; a transfer function's bounds "
                              "cannot come from the data: give range = [low, high] (inf allowed)")
@@ -546,11 +571,11 @@ def _band_from(where: str, t: dict) -> Band:
                                  "attribute, min, max; range is optional: the data's range)")
         width = WidthMap(_name(where, "width.attribute", width["attribute"]),
                          _range(where, "width.range", _toml_range(width.get("range")), auto=True),
-                         _number(where, "width.min", width["min"], 0.0),
-                         _number(where, "width.max", width["max"], 0.0))
+                         _length(where, "width.min", width["min"]),
+                         _length(where, "width.max", width["max"]))
     else:
-        width = _number(where, "width", width, 0.0)
-    depth = _number(where, "depth_offset", t.get("depth_offset", 0.0), 0.0)
+        width = _length(where, "width", width)
+    depth = _length(where, "depth_offset", t.get("depth_offset", 0.0))
     shape = _shape_from(where, t["shape"]) if "shape" in t else None
     pattern = _pattern_from(where, t["pattern"]) if "pattern" in t else None
     return Band(color, width, depth, shape, pattern)
@@ -718,7 +743,7 @@ def style_to_dict(style: Style) -> dict:
     cam = {k: list(v) if isinstance(v, tuple) else v
            for k, v in vars(style.camera).items() if v is not None}
     if style.camera.view is not None:  # the named view replaces azimuth and elevation
-        cam.pop("azimuth"), cam.pop("elevation")
+        cam.pop("azimuth", None), cam.pop("elevation", None)
     out["camera"] = cam
     if list(style.styles) == ["default"] and style.transfer is None:
         out["bands"] = [_band_out(b) for b in style.line_style.bands]

@@ -99,7 +99,7 @@ class LinesCache:
         if Path(seeds).suffix.lower() in FILE_TYPES and Path(seeds).is_file():
             seed_in["file_digest"] = self._digest(Path(seeds))
         opts = {k: v for k, v in dataclasses.asdict(plan.options).items()
-                if k not in ("attributes", "progress", "budget")}
+                if k not in ("attributes", "progress", "budget", "memory")}  # (not the lines)
         return {"field": {"digest": self._digest(Path(path)), "snapshot_in_file": inner,
                           "vector": plan.scene.field.vector},
                 "seeds": seed_in, "trace": opts, "flowkit": __version__, "code": code_digest()}

@@ -323,7 +323,7 @@ def _views(where: str, t, styles: dict[str, Style]) -> dict[str, View]:
         cam = styles[sname].camera
         if "camera" in v:  # keys given override the style's camera, the others are kept
             checked = camera_from_dict(f"{w}.camera", v["camera"])
-            cam = dataclasses.replace(cam, **{k: getattr(checked, k) for k in v["camera"]})
+            cam = cam.over(**{k: getattr(checked, k) for k in v["camera"]})
         views[name] = View(name, sname, size, cam)
     return views
 

@@ -188,10 +188,16 @@ def explain(plan: Plan, cache=None) -> str:
     for sname, where in sc.style_sources.items():
         note = "" if sname in drawn else "  -- drawn by no view: nothing traced for it"
         lines.append(f"style '{sname}': {where}{note}")
+    bounds = None
     for v in sc.views.values():
+        cam = v.camera.describe()
+        if v.camera.automatic and plan.snapshots:
+            if bounds is None:  # the grid only: arrays are read when used
+                bounds = plan.snapshots[0].load(src.vector).grid.bounds
+            chosen = v.camera.resolve(bounds, *v.size).describe()
+            cam += f" ({chosen} on the field's bounds; chosen on the lines' bounds when drawn)"
         lines.append(f"view '{v.name}': style '{v.style}', {v.size[0]}x{v.size[1]}, camera "
-                     f"azimuth {v.camera.azimuth:g} elevation {v.camera.elevation:g} "
-                     f"{v.camera.projection}")
+                     f"{cam}, {v.camera.projection}")
     outs = sc.outputs
     lines.append(f"outputs: lines {outs.lines or '(not written)'}; images {outs.images}")
     if outs.animation is not None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib.util
 import itertools
+import os
 import sys
 import time
 from dataclasses import dataclass, field
@@ -26,7 +27,7 @@ from ..lines import Lines
 from ..seeding import needs_field, trace_spec
 from ..seeding.prune import prune
 from .cache import LinesCache
-from .model import Scene, load_scene, placeholders
+from .model import Scene, SceneError, load_scene, placeholders
 from .plan import Plan, Snapshot, make_plan, still_views
 
 
@@ -73,6 +74,12 @@ def run_scene(scene: Scene | str | Path, *, snapshot=None, out_dir=None, cache_d
     report = report or (lambda msg: None)
     plan = make_plan(scene, snapshot, extra_attributes)
     out = Path(out_dir) if out_dir is not None else scene.base
+    try:  # before any work: an output directory that cannot be made fails now, not after tracing
+        out.mkdir(parents=True, exist_ok=True)
+        if not os.access(out, os.W_OK):
+            raise PermissionError(f"{out} is not writable")
+    except OSError as e:
+        raise SceneError(f"output directory {out}: {e.strerror or e}") from None
     enabled = scene.cache_enabled if use_cache is None else use_cache
     cache = LinesCache(cache_dir or scene.cache_dir) if enabled else None
     notes = []
@@ -286,15 +293,24 @@ def _out(out: Path, rel: str) -> Path:
 
 def _render(plan: Plan, lines: Lines, res: SnapshotResult, out: Path, fmt: dict, ctx, report):
     from ..render import LineRenderer, save_png
+    from ..render.renderer import check_picture
 
     scene = plan.scene
     with LineRenderer(lines, ctx) as r:
         for v in scene.views.values():
             with _Stage(res, f"render {v.name}", report) as st:
-                img = r.render(scene.styles[v.style], v.size, v.camera, overlays=True)
+                style = scene.styles[v.style]
+                img = r.render(style, v.size, v.camera)
+                try:
+                    check_picture(img, r.resolve(style, v.camera, v.size),
+                                  r.scene_scale(style, v.camera, v.size).per_pixel)
+                except ValueError as e:
+                    raise ValueError(f"view '{v.name}': {e}") from None
+                img = r.overlay(img, style, v.camera)
                 path = _out(out, scene.outputs.images.format(view=v.name, style=v.style, **fmt))
                 res.images[v.name] = save_png(img, path)
-                st.msg = f"{path} ({v.size[0]}x{v.size[1]})"
+                cam = r.camera_report(style, v.camera, v.size)
+                st.msg = f"{path} ({v.size[0]}x{v.size[1]}, {cam})"
         if scene.outputs.animation is not None:
             _animate(scene, r, res, out, fmt, report)
         res.uploaded = tuple(r.uploaded_attributes())

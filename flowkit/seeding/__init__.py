@@ -9,19 +9,22 @@ import numpy as np
 from ..integrate.seeds import parse_even_spec, parse_seed_spec
 
 
-def trace_spec(field, spec: str, options=None, *, backend="numba", **kw):
+def trace_spec(field, spec: str, options=None, *, backend="numba", empty="raise", **kw):
     """Lines of ``field`` from the seed spec ``spec`` (any ``--seeds`` form, ``even`` included);
-    ``options``/``kw`` as for ``flowkit.trace``."""
-    from ..integrate.trace import resolve_options, trace
+    ``options``/``kw``/``empty`` as for ``flowkit.trace``."""
+    from ..integrate.trace import check_result, resolve_options, trace
     from .even import evenly_spaced
 
     opts = resolve_options(options, kw)
     even = parse_even_spec(spec)
     if even is None:
-        return trace(field, parse_seed_spec(spec, field), opts, backend=backend)
+        return trace(field, parse_seed_spec(spec, field), opts, backend=backend, empty=empty)
     diag = float(np.linalg.norm(np.diff(field.grid.bounds, axis=1)))
     dsep, dtest = even.distances(diag)
-    return evenly_spaced(field, dsep, dtest, opts, seed=even.seed, backend=backend)
+    lines = evenly_spaced(field, dsep, dtest, opts, seed=even.seed, backend=backend)
+    check_result(max(len(lines), 1), int((lines.n_vertices >= 2).sum()),
+                 lines.line_data["reason"], empty)
+    return lines
 
 
 def needs_field(spec: str) -> bool:

@@ -146,7 +146,7 @@ class Restarted:
         t0 = time.perf_counter()
         o = self.opts.replace(direction=direction, max_length=length,
                               attributes=("time", "arc_length"), progress=False)
-        lines = trace(self.field, starts, o, backend=self.backend)
+        lines = trace(self.field, starts, o, backend=self.backend, empty="ignore")
         self.stats["trace_seconds"] += time.perf_counter() - t0
         self.stats["trace_calls"] += 1
         self.stats["trace_vertices"] += lines.n_points

@@ -226,7 +226,7 @@ class Viewer:
     def _flags(self, style: Style):
         """The template flags the renderer draws ``style`` with (compiled if new)."""
         with self.ctx:
-            return self.renderer.prepare(style)[0]
+            return self.renderer.prepare(self.renderer.resolve(style))[0]  # (lengths as numbers)
 
     def _report(self, message: str) -> None:
         if message != self.error:
@@ -330,7 +330,8 @@ class Viewer:
         """The style in effect with its automatic ranges as numbers: what is drawn, what the
         panel's range fields and the legend show."""
         if self._resolved[0] is not self.style:
-            self._resolved = (self.style, self.renderer.resolve(self.style))
+            self._resolved = (self.style, self.renderer.resolve(self.style, self.camera,
+                                                                self.scene_size))
         return self._resolved[1]
 
     def cycle_color_attribute(self) -> str | None:
@@ -390,7 +391,8 @@ class Viewer:
         """The camera drawn with: pinned (``orbit.pinned``), fitted once to the scene's
         viewport by ``fit_camera``, so orbiting keeps the scale."""
         if self._fit is not None:  # fitted when first needed: at the viewport's size then
-            self._camera = orbit.pinned(self._fit, self.renderer.bounds, self.scene_size)
+            fit = self.renderer.camera(self.style, self._fit, self.scene_size)  # (as render)
+            self._camera = orbit.pinned(fit, self.renderer.bounds, self.scene_size)
             self._fit = None
         return self._camera
 

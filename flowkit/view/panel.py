@@ -255,10 +255,13 @@ class Panel:
         v = self.viewer
         if p.kind == "float":
             low = -math.inf if p.low is None else p.low
-            fmt = number_format(p.value)
-            changed, x = imgui.drag_float(p.label, p.value, _float_speed(p.value), format=fmt)
+            value, label = p.value, p.label
+            if isinstance(value, str):  # a relative length ("1/200d"): its number in this view;
+                value, label = get_at(v.resolved, p.path), f"{p.label} ({p.value})"  # a drag
+            fmt = number_format(value)  # sets a number
+            changed, x = imgui.drag_float(label, value, _float_speed(value), format=fmt)
             x = max(shown(x, fmt), low)
-            return changed and x != p.value, x
+            return changed and x != value, x
         if p.kind == "color":
             changed, c = imgui.color_edit4(p.label, list(p.value))
             c = keep_unedited(c, p.value, shown_color)

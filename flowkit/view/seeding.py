@@ -42,7 +42,8 @@ class LiveSeeding:
         return decimals_for(self.bounds)
 
     def trace(self, rake: Rake) -> Lines:
-        lines = trace(self.field, rake.seeds(), self.options, backend=self.backend)
+        lines = trace(self.field, rake.seeds(), self.options, backend=self.backend,
+                      empty="ignore")  # a rake dragged outside: no lines, no error
         if self.prune is not None:
             from ..seeding.prune import prune
 
