@@ -118,7 +118,7 @@ def test_the_heated_room_under_a_budget(tmp_path):
 def test_a_field_that_fits_is_read_once_and_only_where_lines_go(tmp_path):
     """A large file (here: any) that fits the memory is still read brick by brick."""
     path = _abc_file(tmp_path / "abc.h5")
-    n_bricks = 27  # 23 cells per axis in bricks of 8
+    n_bricks = 27  # 24 nodes per axis in bricks of 8
     corner = np.random.default_rng(1).random((20, 3)) * 1.0  # seeds near the origin
     fld = load_field(path)
     lines = trace(fld, corner, max_length=0.5)  # the machine's free memory: a slot per brick
@@ -160,7 +160,7 @@ def test_a_budget_too_small_for_a_trace_is_a_named_error_and_leaves_no_file(tmp_
                "--memory", "20kB"])
     err = capsys.readouterr().err
     assert rc == 2 and not out.exists() and "Traceback" not in err and err.count("\n") == 1
-    assert str(path) in err and "20 kB" in err and "--memory 87.5 kB" in err
+    assert str(path) in err and "20 kB" in err and "--memory 61.4 kB" in err
     with pytest.raises(FieldMemoryError, match="method ros34pw2"):
         trace(load_field(path), SEEDS, memory="120kB", method="ros34pw2")
     # with a budget that holds a trace, the CLI writes the lines and what it read
@@ -169,17 +169,24 @@ def test_a_budget_too_small_for_a_trace_is_a_named_error_and_leaves_no_file(tmp_
     assert read_lines(out).attrs["bricks_read"] > 0
 
 
-def test_bricks_hold_their_cells_and_the_layer_above(tmp_path):
-    """A brick's slot holds the nodes of its cells and the next layer (from node 0 on past the
-    end of a periodic axis), NaN past the end of a bounded one."""
-    g = Grid.regular(0.0, 1.0, (10, 7, 5), periodic=(True, False, False))
-    v = np.arange(10 * 7 * 5 * 3, dtype=np.float64).reshape(10, 7, 5, 3)
+def test_a_brick_is_one_aligned_block_of_nodes():
+    """A brick's slot holds its block of nodes (the file's chunk), NaN past the grid's end;
+    the bricks of a cell's corners wrap to node 0 past the end of a periodic axis."""
     from flowkit.fields.stored import Stored
 
-    pool = bricks.BrickPool(Stored.of(v), g, 10 ** 6, cells=(4, 4, 4))
-    pool.load(np.array([np.ravel_multi_index((2, 1, 0), tuple(pool.count))]))
-    slot = pool.table[np.ravel_multi_index((2, 1, 0), tuple(pool.count))]
-    nodes = pool.pool[slot * 5:(slot + 1) * 5]
-    # x: nodes 8, 9, then from node 0 on (periodic); y: nodes 4..6, then past the end
-    np.testing.assert_array_equal(nodes[:, :3], v[[8, 9, 0, 1, 2]][:, 4:7, 0:5])
-    assert np.isnan(nodes[:, 3:]).all()
+    g = Grid.regular(0.0, 1.0, (10, 7, 5), periodic=(True, False, False))
+    v = np.arange(10 * 7 * 5 * 3, dtype=np.float64).reshape(10, 7, 5, 3)
+    pool = bricks.BrickPool(Stored.of(v), g, 10 ** 6, size=(4, 4, 4))
+    assert tuple(pool.count) == (3, 2, 2)
+    brick = np.ravel_multi_index((2, 1, 0), (3, 2, 2))
+    pool.load(np.array([brick]))
+    s = pool.table[brick]
+    nodes = pool.pool[s * 4:(s + 1) * 4]
+    np.testing.assert_array_equal(nodes[:2, :3], v[8:10, 4:7, 0:4])
+    assert np.isnan(nodes[2:]).all() and np.isnan(nodes[:, 3:]).all()  # past the ends
+    # the wrap cell (9, 3, 3): x nodes 9 and 0, y 3 and 4, z 3 and 4
+    corners = pool.corner_bricks(np.array([[9, 3, 3], [-1, 0, 0]]))
+    assert sorted(set(corners[0])) == sorted(
+        np.ravel_multi_index((bx, by, bz), (3, 2, 2)) for bx in (2, 0) for by in (0, 1)
+        for bz in (0, 1))
+    assert (corners[1] == -1).all()

@@ -1,11 +1,14 @@
-"""Fields read brick by brick: the table the step loop reads (``kernel._gather``).
+"""Fields read brick by brick: the pool and table the step loop reads (``kernel._gather``).
 
-A bricked field keeps only some bricks of its vector array in memory, in a pool of slots; the
-table maps every brick to its slot (-1: not resident).  Layout of the int64 table array ``bk``:
-``bk[B_CELLS:B_CELLS + 3]`` cells per brick along each axis, ``bk[B_COUNT:B_COUNT + 3]`` bricks
-along each axis, ``bk[B_TABLE:]`` the slot of each brick, C order.  The pool is one array of
-shape (slots * (b0 + 1), b1 + 1, b2 + 1, 3): each slot holds a brick's cells and the one layer of
-nodes above them (the upper corners of its last cells), so a cell is read from one slot.  An
+A brick is a block of nodes, the file's chunk where it has one (else ``BRICK_NODES`` along each
+axis), so that a brick is one aligned read: a read that takes part of a chunk costs the whole
+chunk, so a brick never reaches into the next one.  A cell's corners lie in one brick, or, for
+the cells on a brick's upper faces, in up to eight: the step loop looks each corner's brick up.
+A bricked field keeps some bricks in memory, in a pool of slots; the table maps every brick to
+its slot (-1: not resident).  Layout of the int64 table array ``bk``: ``bk[B_SIZE:B_SIZE + 3]``
+nodes per brick along each axis, ``bk[B_COUNT:B_COUNT + 3]`` bricks along each axis,
+``bk[B_NODES:B_NODES + 3]`` the grid's nodes along each axis, ``bk[B_TABLE:]`` the slot of each
+brick, C order.  The pool is one array of shape (slots * s0, s1, s2, 3), slot after slot.  An
 empty table (``NO_BRICKS``) means the vector array is the whole field.
 """
 
@@ -13,27 +16,26 @@ from __future__ import annotations
 
 import numpy as np
 
-B_CELLS, B_COUNT, B_TABLE = 0, 3, 6
+B_SIZE, B_COUNT, B_NODES, B_TABLE = 0, 3, 6, 9
 NO_BRICKS = np.zeros(0, np.int64)
 
 MIN_SLOTS = 8  # a step may read a few bricks at once; fewer slots would make lines take turns
 POOL_SHARE = 0.8  # of a memory budget for the bricks; the rest for lines, buffers, the runtime
 WHOLE_BYTES = 64 << 20  # an array in a file this small is read whole: bricks would not pay
 GROUP_BYTES = 256 << 20  # of pages ``by_bricks`` fills before it computes and gives them back
-BRICK_CELLS = 64  # along each axis, where the file is not chunked
+BRICK_NODES = 64  # along each axis, where the file is not chunked
 
 
-def n_cells(c: np.ndarray, period: float) -> int:
-    """Cells along an axis of nodes ``c``: a periodic axis has the wrap cell (``kernel._n_cells``)."""
-    return c.size if period > 0.0 and c[0] + period - c[-1] > 0.0 else c.size - 1
+def brick_nodes(stored, grid) -> np.ndarray:
+    """Nodes per brick along each axis: the file's chunks where it has them, else
+    ``BRICK_NODES`` (at most the axis)."""
+    chunks = stored.chunks[:3] if stored.chunks else (BRICK_NODES,) * 3
+    return np.array([max(2, min(ch, n)) for ch, n in zip(chunks, grid.shape)], np.int64)
 
 
-def brick_cells(stored, grid) -> tuple[int, int, int]:
-    """Cells per brick along each axis: the file's chunks where it has them (a brick is then
-    read from one chunk and the first layer of the next), else ``BRICK_CELLS``."""
-    chunks = stored.chunks[:3] if stored.chunks else (BRICK_CELLS,) * 3
-    return tuple(int(max(1, min(ch, n_cells(c, p))))
-                 for ch, c, p in zip(chunks, grid.axes, grid.period))
+def bricks_of(nodes: np.ndarray, size: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """The brick of each node (rows of node indices, in the grid)."""
+    return np.ravel_multi_index(tuple((np.asarray(nodes) // size).T), tuple(count))
 
 
 class BrickPool:
@@ -41,30 +43,30 @@ class BrickPool:
     at most what every brick takes): ``pool`` and ``bk`` for the step loop, ``load`` to make
     bricks resident, the least recently used ones evicted for them.
 
-    ``stored``: the vector (a ``stored.Stored``, read a box at a time), on ``grid``; ``cells``:
-    cells per brick along each axis (default ``brick_cells``)."""
+    ``stored``: the vector (a ``stored.Stored``, read a box at a time), on ``grid``; ``size``:
+    nodes per brick along each axis (default ``brick_nodes``)."""
 
-    def __init__(self, stored, grid, budget: int, cells=None):
+    def __init__(self, stored, grid, budget: int, size=None):
         from .stored import FieldMemoryError, fmt_bytes
 
         self.stored, self.grid = stored, grid
-        self.cells = np.array(cells or brick_cells(stored, grid), np.int64)
-        ncell = np.array([n_cells(c, p) for c, p in zip(grid.axes, grid.period)], np.int64)
-        self.count = -(-ncell // self.cells)
+        self.size = np.array(size if size is not None else brick_nodes(stored, grid), np.int64)
+        self.count = -(-np.array(grid.shape, np.int64) // self.size)
         n_bricks = int(np.prod(self.count))
-        nodes = tuple(int(b) + 1 for b in self.cells)
-        self.slot_bytes = int(np.prod(nodes)) * 3 * stored.dtype.itemsize
+        self.slot_bytes = int(np.prod(self.size)) * 3 * stored.dtype.itemsize
         slots = min(n_bricks, int(POOL_SHARE * budget // self.slot_bytes))
         least = min(MIN_SLOTS, n_bricks)
         if slots < least:
             raise FieldMemoryError(
                 f"{stored.where}: a memory budget of {fmt_bytes(budget)} holds {slots} bricks "
-                f"of {nodes} nodes, a trace needs {least}: give --memory "
+                f"of {tuple(self.size.tolist())} nodes, a trace needs {least}: give --memory "
                 f"{fmt_bytes(least * self.slot_bytes / POOL_SHARE)} or more")
-        self.pool = np.empty((slots * nodes[0], nodes[1], nodes[2], 3), stored.dtype)
+        s0, s1, s2 = (int(v) for v in self.size)
+        self.pool = np.empty((slots * s0, s1, s2, 3), stored.dtype)
         self.bk = np.full(B_TABLE + n_bricks, -1, np.int64)
-        self.bk[B_CELLS:B_CELLS + 3] = self.cells
+        self.bk[B_SIZE:B_SIZE + 3] = self.size
         self.bk[B_COUNT:B_COUNT + 3] = self.count
+        self.bk[B_NODES:B_NODES + 3] = grid.shape
         self.table = self.bk[B_TABLE:]
         self.held = np.full(slots, -1, np.int64)  # the brick in each slot
         self.used = np.zeros(slots, np.int64)  # when each slot was last asked for
@@ -76,13 +78,18 @@ class BrickPool:
     def slots(self) -> int:
         return self.held.size
 
-    def brick_of(self, cells: np.ndarray) -> np.ndarray:
-        """The brick of each cell (rows of cell indices; -1 where one is negative)."""
+    def corner_bricks(self, cells: np.ndarray) -> np.ndarray:
+        """The bricks holding the corners of each cell (rows of cell indices): (n, 8), -1 in
+        rows with a negative index (no cell)."""
         cells = np.asarray(cells, np.int64)
         ok = np.all(cells >= 0, axis=1)
-        b = np.ravel_multi_index(tuple((np.maximum(cells, 0) // self.cells).T), tuple(self.count),
-                                 mode="clip")
-        return np.where(ok, b, -1)
+        n = np.array(self.grid.shape)
+        out = np.empty((cells.shape[0], 8), np.int64)
+        for d in range(8):
+            corner = np.maximum(cells, 0) + [(d >> a) & 1 for a in range(3)]
+            corner = np.where(corner >= n, 0, corner)  # (node 0 after the last: a wrap cell)
+            out[:, d] = bricks_of(corner, self.size, self.count)
+        return np.where(ok[:, None], out, -1)
 
     def resident(self, bricks: np.ndarray) -> np.ndarray:
         return self.table[bricks] >= 0
@@ -113,40 +120,22 @@ class BrickPool:
             self.used[slot] = self.clock
 
     def _read(self, brick: int, slot: int) -> None:
-        """Brick ``brick`` into ``slot``: its cells' nodes and the layer above them, the nodes
-        past the last on a periodic axis from its start (NaN past a bounded axis's end)."""
+        """Brick ``brick`` into ``slot``: one aligned read (NaN past the grid's ends)."""
         b = np.unravel_index(brick, tuple(self.count))
-        nodes = self.cells + 1
-        dst = self.pool[slot * nodes[0]:(slot + 1) * nodes[0]]
-        pieces = [wrapped_pieces(int(b[a] * self.cells[a]), int((b[a] + 1) * self.cells[a]) + 1,
-                                 self.grid.shape[a], self.grid.periodic[a]) for a in range(3)]
-        if np.prod([sum(d.stop - d.start for d, _ in p) for p in pieces]) < np.prod(nodes):
-            dst[...] = np.nan  # (the nodes past a bounded axis's end, read by no cell)
-        for dx, sx in pieces[0]:
-            for dy, sy in pieces[1]:
-                for dz, sz in pieces[2]:
-                    out = dst[dx, dy, dz]
-                    if out.flags.c_contiguous:
-                        self.stored.source.fill_box(out, (sx, sy, sz))
-                    else:
-                        tmp = np.empty(out.shape, out.dtype)
-                        self.stored.source.fill_box(tmp, (sx, sy, sz))
-                        out[...] = tmp
-                    self.bytes_read += out.nbytes
+        s0 = int(self.size[0])
+        dst = self.pool[slot * s0:(slot + 1) * s0]
+        box = tuple(slice(int(b[a] * self.size[a]), int(min((b[a] + 1) * self.size[a], n)))
+                    for a, n in enumerate(self.grid.shape))
+        shape = tuple(x.stop - x.start for x in box)
+        if shape == dst.shape[:3]:
+            self.stored.source.fill_box(dst, box)
+        else:  # the last brick of an axis: part of a slot
+            dst[...] = np.nan
+            tmp = np.empty((*shape, 3), dst.dtype)
+            self.stored.source.fill_box(tmp, box)
+            dst[:shape[0], :shape[1], :shape[2]] = tmp
+        self.bytes_read += int(np.prod(shape)) * 3 * dst.itemsize
         self.loads += 1
-
-
-def wrapped_pieces(lo: int, hi: int, n: int, periodic: bool) -> list[tuple[slice, slice]]:
-    """Nodes lo:hi of an axis of n nodes as (offset from lo, nodes) slice pairs: past the ends
-    from the other end on a periodic axis, left out on a bounded one."""
-    if not periodic:
-        a, b = max(lo, 0), min(hi, n)
-        return [(slice(a - lo, b - lo), slice(a, b))] if a < b else []
-    out = []
-    for start in range(lo - lo % n, hi, n):  # each period the range meets
-        a, b = max(lo, start), min(hi, start + n)
-        out.append((slice(a - lo, b - lo), slice(a - start, b - start)))
-    return out
 
 
 def read_whole(field, scalar: str | None = None) -> bool:
@@ -161,25 +150,27 @@ def read_whole(field, scalar: str | None = None) -> bool:
 def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
               budget: int = GROUP_BYTES) -> dict:
     """``compute(field, points)`` (a dict of per-point arrays), on a copy of ``field`` that holds
-    only the bricks (``brick_cells``) holding ``points``, with ``halo`` nodes more around them,
-    a few bricks at a time within ``budget`` bytes: the same values, read from the same nodes,
-    as on the whole field.  The copy's arrays are virtual memory of the field's size (pages are
-    taken only where a brick is written, and given back after each group); ``scalars``: the
-    scalar arrays ``compute`` reads."""
+    only the bricks (``brick_nodes``) near ``points`` (those holding their cells' corners and
+    ``halo`` nodes more), a group of bricks at a time within ``budget`` bytes: the same values,
+    read from the same nodes, as on the whole field.  The copy's arrays are virtual memory of
+    the field's size (pages are taken only where a brick is written, and given back after each
+    group); ``scalars``: the scalar arrays ``compute`` reads."""
+    import itertools
     import mmap
     from dataclasses import replace
 
     g = field.grid
+    shape = np.array(g.shape, np.int64)
     points = np.ascontiguousarray(points, np.float64)
-    size = np.array(brick_cells(field.stored_vector(), g), np.int64)
-    count = -(-np.array([n_cells(c, p) for c, p in zip(g.axes, g.period)]) // size)
-    cells = np.empty((points.shape[0], 3), np.int64)
+    size = brick_nodes(field.stored_vector(), g)
+    count = -(-shape // size)
+    nodes = np.empty((points.shape[0], 3), np.int64)  # each point's cell's lower corner
     for a, (c, p) in enumerate(zip(g.axes, g.period)):
         x = points[:, a]
         if p > 0.0:
             x = c[0] + (x - c[0]) % p
-        cells[:, a] = np.clip(np.searchsorted(c, x, "right") - 1, 0, n_cells(c, p) - 1)
-    brick = np.ravel_multi_index(tuple((cells // size).T), tuple(count))
+        nodes[:, a] = np.clip(np.searchsorted(c, x, "right") - 1, 0, c.size - 1)
+    brick = bricks_of(nodes, size, count)
     order = np.argsort(brick, kind="stable")
     ids, first = np.unique(brick[order], return_index=True)
     groups = np.split(order, first[1:])
@@ -194,20 +185,29 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
         copies[name] = np.frombuffer(maps[-1], st.dtype, nbytes // st.dtype.itemsize).reshape(st.shape)
     sub = replace(field, vector=copies[None],
                   scalars={**field.scalars, **{n: a for n, a in copies.items() if n is not None}})
-    reach = 1 + halo  # nodes read below a brick's first cell and above its last upper corner
+    reach = 1 + halo  # nodes read beyond a brick: its cells' upper corners, and the halo
     out: dict = {}
     todo: list[int] = []
+    filled: set = set()
     held = 0
     for n, brick_id in enumerate(ids):
         b = np.unravel_index(brick_id, tuple(count))
-        box = [wrapped_pieces(int(b[a] * size[a]) - reach, int((b[a] + 1) * size[a]) + 1 + reach,
-                              g.shape[a], g.periodic[a]) for a in range(3)]
-        for name, st in arrays.items():
-            for _, sx in box[0]:
-                for _, sy in box[1]:
-                    for _, sz in box[2]:
-                        copies[name][sx, sy, sz] = st.read_box((sx, sy, sz))
-                        held += _pages(copies[name], sx, sy, sz)
+        near = []  # per axis, the bricks within reach (wrapped on a periodic axis)
+        for a in range(3):
+            lo = (int(b[a] * size[a]) - reach) // int(size[a])
+            hi = (int((b[a] + 1) * size[a]) + reach - 1) // int(size[a])
+            near.append(sorted({q % int(count[a]) if g.periodic[a] else q
+                                for q in range(lo, hi + 1)
+                                if g.periodic[a] or 0 <= q < count[a]}))
+        for blk in itertools.product(*near):
+            if blk in filled:
+                continue
+            filled.add(blk)
+            box = tuple(slice(int(q * size[a]), int(min((q + 1) * size[a], shape[a])))
+                        for a, q in enumerate(blk))
+            for name, st in arrays.items():
+                copies[name][box] = st.read_box(box)
+                held += _pages(copies[name], *box)
         todo.append(n)
         if held >= budget or n == ids.size - 1:
             idx = np.concatenate([groups[m] for m in todo])
@@ -217,7 +217,7 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
                 out[key][idx] = v
             for mm in maps:
                 mm.madvise(mmap.MADV_DONTNEED)  # the pages back, zero again
-            todo, held = [], 0
+            todo, filled, held = [], set(), 0
     return out
 
 

@@ -34,7 +34,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..fields.bricks import B_CELLS, B_COUNT, B_TABLE
+from ..fields.bricks import B_COUNT, B_NODES, B_SIZE, B_TABLE
 from ..fields.interp import locate_axis, prefetch_cell, prefetch_corners
 from ..jit import helper, inline, kernel
 from ..jit import prefetch as _prefetch  # noqa: F401 (lanes.py, benchmarks)
@@ -179,11 +179,38 @@ def _locate_cell(c, period, inv, x):
 
 
 @inline
+def _axis_bricks(bk, a, i):
+    """Along axis a of a bricked field: (brick, index in it) of node i and of node i + 1 (node 0
+    after the last on a wrapped axis)."""
+    size, n = bk[B_SIZE + a], bk[B_NODES + a]
+    b0 = i // size
+    l0 = i - b0 * size
+    if l0 + 1 < size and i + 1 < n:
+        return b0, l0, b0, l0 + 1
+    up = i + 1 if i + 1 < n else 0
+    b1 = up // size
+    return b0, l0, b1, up - b1 * size
+
+
+@inline
+def _slot(bk, bx, by, bz):
+    return bk[B_TABLE + (bx * bk[B_COUNT + 1] + by) * bk[B_COUNT + 2] + bz]
+
+
+@inline
 def _brick(bk, i, j, k):
-    """The brick holding cell (i, j, k) of a bricked field, when it is not resident; else -1."""
-    brick = ((i // bk[B_CELLS] * bk[B_COUNT + 1] + j // bk[B_CELLS + 1]) * bk[B_COUNT + 2]
-             + k // bk[B_CELLS + 2])
-    return brick if bk[B_TABLE + brick] < 0 else -1
+    """A brick holding a corner of cell (i, j, k) of a bricked field that is not resident (the
+    first found), else -1."""
+    bx0, _, bx1, _ = _axis_bricks(bk, 0, i)
+    by0, _, by1, _ = _axis_bricks(bk, 1, j)
+    bz0, _, bz1, _ = _axis_bricks(bk, 2, k)
+    for d in range(8):
+        bx = bx1 if d & 1 else bx0
+        by = by1 if d & 2 else by0
+        bz = bz1 if d & 4 else bz0
+        if _slot(bk, bx, by, bz) < 0:
+            return (bx * bk[B_COUNT + 1] + by) * bk[B_COUNT + 2] + bz
+    return -1
 
 
 @inline
@@ -213,41 +240,51 @@ def _gather(vec, bk, ci, coef):
     """Coefficients of the trilinear polynomial of cell ci; False when a corner is not finite.
 
     ``bk`` empty: ``vec`` is the whole field.  Otherwise the field is bricked (``bricks.py``):
-    ``vec`` is the pool of resident bricks and ``bk`` its table; a cell whose brick is not
-    resident puts the brick's number in ci[3] (the step loop then suspends the line, which
-    waits for the brick) and gives NaN."""
+    ``vec`` is the pool of resident bricks and ``bk`` its table; a cell with a corner in a
+    brick that is not resident puts the brick's number in ci[3] (the step loop then suspends
+    the line, which waits for the brick) and gives NaN."""
     i, j, k = ci[0], ci[1], ci[2]
+    # corner (x, y, z bits) at vec[r_xyz, j_y, k_z]: whole field, the row is the node's index;
+    # bricked, the corner's slot's rows from slot * size on, then its index in the brick
     if bk.size == 0:
         nx, ny, nz = vec.shape[0], vec.shape[1], vec.shape[2]
         # upper corners (node 0 after the last on a wrapped axis), without integer division
         i1 = i + 1 if i + 1 < nx else 0
-        j1 = j + 1 if j + 1 < ny else 0
-        k1 = k + 1 if k + 1 < nz else 0
+        j0, j1 = j, (j + 1 if j + 1 < ny else 0)
+        k0, k1 = k, (k + 1 if k + 1 < nz else 0)
+        r000 = r010 = r001 = r011 = i
+        r100 = r110 = r101 = r111 = i1
     else:
-        missing = _brick(bk, i, j, k)
-        if missing >= 0:
+        # (no cell: a stage point made of NaN, after a missing brick left NaN in k)
+        missing = _brick(bk, i, j, k) if i >= 0 and j >= 0 and k >= 0 else ci[3]
+        if missing >= 0 or i < 0 or j < 0 or k < 0:
             ci[3] = missing
             for m in range(8):
                 for c in range(3):
                     coef[m, c] = np.nan
             return False
-        bi, bj, bq = i // bk[B_CELLS], j // bk[B_CELLS + 1], k // bk[B_CELLS + 2]
-        slot = bk[B_TABLE + (bi * bk[B_COUNT + 1] + bj) * bk[B_COUNT + 2] + bq]
-        # the slot's nodes from the brick's first cell on, the layer above its last included
-        i = slot * (bk[B_CELLS] + 1) + i - bi * bk[B_CELLS]
-        j -= bj * bk[B_CELLS + 1]
-        k -= bq * bk[B_CELLS + 2]
-        i1, j1, k1 = i + 1, j + 1, k + 1
+        bx0, l0, bx1, l1 = _axis_bricks(bk, 0, i)
+        by0, j0, by1, j1 = _axis_bricks(bk, 1, j)
+        bz0, k0, bz1, k1 = _axis_bricks(bk, 2, k)
+        size = bk[B_SIZE]
+        r000 = _slot(bk, bx0, by0, bz0) * size + l0
+        r100 = _slot(bk, bx1, by0, bz0) * size + l1
+        r010 = _slot(bk, bx0, by1, bz0) * size + l0
+        r110 = _slot(bk, bx1, by1, bz0) * size + l1
+        r001 = _slot(bk, bx0, by0, bz1) * size + l0
+        r101 = _slot(bk, bx1, by0, bz1) * size + l1
+        r011 = _slot(bk, bx0, by1, bz1) * size + l0
+        r111 = _slot(bk, bx1, by1, bz1) * size + l1
     bad = 0.0
     for c in range(3):  # (float64 before any arithmetic: a float32 field gives the same lines)
-        v000 = np.float64(vec[i, j, k, c])
-        v100 = np.float64(vec[i1, j, k, c])
-        v010 = np.float64(vec[i, j1, k, c])
-        v110 = np.float64(vec[i1, j1, k, c])
-        v001 = np.float64(vec[i, j, k1, c])
-        v101 = np.float64(vec[i1, j, k1, c])
-        v011 = np.float64(vec[i, j1, k1, c])
-        v111 = np.float64(vec[i1, j1, k1, c])
+        v000 = np.float64(vec[r000, j0, k0, c])
+        v100 = np.float64(vec[r100, j0, k0, c])
+        v010 = np.float64(vec[r010, j1, k0, c])
+        v110 = np.float64(vec[r110, j1, k0, c])
+        v001 = np.float64(vec[r001, j0, k1, c])
+        v101 = np.float64(vec[r101, j0, k1, c])
+        v011 = np.float64(vec[r011, j1, k1, c])
+        v111 = np.float64(vec[r111, j1, k1, c])
         coef[0, c] = v000
         coef[1, c] = v100 - v000
         coef[2, c] = v010 - v000

@@ -31,6 +31,7 @@ from .reasons import REASON_NAMES
 BUFFER_BYTES = 32 << 20  # output buffer of one pass: (tasks, budget) vertices of 40 bytes
 MAX_BUDGET = 1024  # vertices per line per pass (longer lines continue in the next pass)
 BATCH_SEEDS = 16384
+WANTED = 4  # bricks remembered per line of a bricked trace (Setup._ready)
 CELL_CAP = 1.25  # cell-aware steps: at most this times the straight-line time to the exit face
 PROGRESS_MIN_SEEDS = 20000
 
@@ -346,8 +347,9 @@ class Setup:
             B = 2
         out = self.buffers(n, B)  # one allocation, reused by every pass (later ones have fewer lines)
         extra = []
+        wanted = np.full((n, WANTED), -1, np.int64)  # the bricks each line waited for last
         while active.size:
-            ready = active if self.bricks is None else self._ready(active, si)
+            ready = active if self.bricks is None else self._ready(active, si, wanted)
             part, cols, busy = self.advance_pass(ready, seeds, dirs, spacing, phase, io, sf, si,
                                                  out)
             chunks.append(part)
@@ -363,29 +365,35 @@ class Setup:
         self._keep_point_data(extra, t, s, order)
         return pts[order], t, s, owner[order], si
 
-    def _ready(self, active, si):
-        """The lines of ``active`` that can run: those waiting for no brick, and those whose
-        brick, and the brick of the cell they stand in, are resident once the most wanted
-        bricks are loaded (a line waits at a brick's face for the next one: both are read
-        when it resumes)."""
+    def _ready(self, active, si, wanted):
+        """The lines of ``active`` that can run once the most wanted bricks are loaded: those
+        waiting for no brick, and those whose brick, the bricks of the cell they stand in and
+        the last few bricks they waited for (``wanted``, one row per line) are resident.  A
+        step may read several bricks (its stages, a face's neighbour), met one at a time: a line
+        given only the one it waits for now would lose the one before, and wait for it again."""
         pool = self.bricks
         wait = si[active, K.I_WAIT] - 1
         waiting = wait >= 0
         if not waiting.any():
             return active
-        home = np.where(si[active, K.I_STATUS] == K.RUNNING,
-                        pool.brick_of(si[active, K.I_CELL:K.I_CELL + 3]), -1)
-        pool.load(np.concatenate([wait[waiting], home[waiting & (home >= 0)]]))
+        rows = active[waiting]
+        fresh = ~np.any(wanted[rows] == wait[waiting, None], axis=1)
+        wanted[rows[fresh], 1:] = wanted[rows[fresh], :-1]  # (newest first)
+        wanted[rows[fresh], 0] = wait[waiting][fresh]
+        home = pool.corner_bricks(np.where((si[rows, K.I_STATUS] == K.RUNNING)[:, None],
+                                           si[rows, K.I_CELL:K.I_CELL + 3], -1))
+        need = np.concatenate([wanted[rows], home], axis=1)
+        pool.load(need[need >= 0])
 
-        def ok():
-            return ~waiting | (pool.resident(np.maximum(wait, 0))
-                               & ((home < 0) | pool.resident(np.maximum(home, 0))))
-        ready = ok()
-        if not ready.any():  # the most wanted bricks split every waiting line's pair
-            i = np.flatnonzero(waiting)[0]
-            pool.load(np.array([wait[i]] + ([home[i]] if home[i] >= 0 else [])))
-            ready = ok()
-        return active[ready]
+        def ready():
+            out = ~waiting
+            out[waiting] = np.all((need < 0) | pool.resident(np.maximum(need, 0)), axis=1)
+            return out
+        run = ready()
+        if not run.any():  # the most wanted bricks split every waiting line's set
+            pool.load(need[0][need[0] >= 0])
+            run = ready()
+        return active[run]
 
     def reads(self) -> dict:
         """Lines.attrs entries of a field read brick by brick: what was read, and the pool."""
