@@ -276,3 +276,21 @@ def test_resample_command_writes_the_field_once(tmp_path, capsys):
     assert "shape (7, 7, 7)" in capsys.readouterr().out
     assert main(["info", str(path), "--resample", "3,3"]) == 2
     assert "expected NX,NY,NZ" in capsys.readouterr().err
+
+
+def test_a_scene_resamples_its_mesh_as_its_field_says(tmp_path):
+    from flowkit.scene import load_scene, make_plan
+    from flowkit.scene.model import SceneError
+
+    pts, cells = block((2, 2, 2), kinds="poly")
+    write_vtu(tmp_path / "m.vtu", pts, cells)
+    text = ('version = 1\n[field]\nfile = "m.vtu"\nresample = "{}"\n[seeds]\n'
+            'spec = "line:0.5,0.5,0.5:1.5,0.5,0.5:3"\n[styles.a]\n[[styles.a.bands]]\nwidth = 2\n')
+    (tmp_path / "s.toml").write_text(text.format("5,6,7"))
+    scene = load_scene(tmp_path / "s.toml")
+    snap = make_plan(scene).snapshots[0]
+    f = snap.load(scene.field.vector, scene.field.resample)
+    assert f.grid.shape == (5, 6, 7) and not check_linear(f).any()
+    (tmp_path / "s.toml").write_text(text.format("5,6"))
+    with pytest.raises(SceneError, match=r"resample.*NX,NY,NZ"):
+        load_scene(tmp_path / "s.toml")

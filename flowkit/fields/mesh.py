@@ -103,7 +103,9 @@ def elements(mesh: Mesh) -> Elements:
                         "polyhedron)")
     size = np.diff(mesh.offsets)
     fixed = types != POLYHEDRON
-    want = np.array([NODES.get(int(t), 0) for t in types[fixed]], np.int64)
+    want = np.zeros(256, np.int64)
+    want[list(NODES)] = list(NODES.values())
+    want = want[types[fixed]]
     if np.any(size[fixed] != want):
         c = int(np.flatnonzero(fixed)[np.flatnonzero(size[fixed] != want)[0]])
         raise MeshError(f"cell {c} ({NAMES[int(types[c])]}) has {size[c]} nodes, expected "
@@ -228,6 +230,46 @@ def shape(kind, i, r, s, t):
     return t, 0.0, 0.0, 1.0
 
 
+@inline
+def n_nodes(k):
+    return 4 if k == 10 else (5 if k == 14 else (6 if k == 13 else 8))
+
+
+@inline
+def centre(k):
+    """(r, s, t) of a cell's parametric centroid."""
+    if k == 10:
+        return 0.25, 0.25, 0.25
+    if k == 13:
+        return 1.0 / 3.0, 1.0 / 3.0, 0.5
+    return 0.5, 0.5, (0.2 if k == 14 else 0.5)
+
+
+@inline
+def map_point(k, e, conn, pts, r, s, t):
+    """The point (x, y, z) at (r, s, t) of element e (kind k) and the Jacobian
+    d(x, y, z)/d(r, s, t) there, row by row."""
+    x = y = z = 0.0
+    j00 = j01 = j02 = j10 = j11 = j12 = j20 = j21 = j22 = 0.0
+    for i in range(n_nodes(k)):
+        n, dr, ds, dt = shape(k, i, r, s, t)
+        p = conn[e, i]
+        px, py, pz = pts[p, 0], pts[p, 1], pts[p, 2]
+        x += n * px
+        y += n * py
+        z += n * pz
+        j00 += dr * px
+        j01 += ds * px
+        j02 += dt * px
+        j10 += dr * py
+        j11 += ds * py
+        j12 += dt * py
+        j20 += dr * pz
+        j21 += ds * pz
+        j22 += dt * pz
+    return x, y, z, j00, j01, j02, j10, j11, j12, j20, j21, j22
+
+
 # -- compiled: polyhedra walked face by face; volumes ------------------------------------------
 @kernel()
 def _count_poly(poly, faces, foff, connectivity, offsets, n_el, n_ctr, n_mem, bad):
@@ -321,7 +363,7 @@ def _fill(types, connectivity, offsets, faces, foff, el_start, ctr_start, mem_st
             continue
         g = ctr_start[c]
         m = mem_start[c]
-        centre = n_pts + g  # the cell centroid: the mean of the cell's unique nodes
+        cc = n_pts + g  # the cell centroid: the mean of the cell's unique nodes
         ptr[g] = m
         for i in range(o0, o1):
             members[m] = connectivity[i]
@@ -333,11 +375,11 @@ def _fill(types, connectivity, offsets, faces, foff, el_start, ctr_start, mem_st
         for _ in range(nf):
             k = faces[pos]
             if k == 3:
-                conn[e, 0] = centre
+                conn[e, 0] = cc
                 for i in range(3):
                     conn[e, 1 + i] = faces[pos + 1 + i]
                 for i in range(4, 8):
-                    conn[e, i] = centre
+                    conn[e, i] = cc
                 kind[e] = 10
                 e += 1
             else:
@@ -348,12 +390,12 @@ def _fill(types, connectivity, offsets, faces, foff, el_start, ctr_start, mem_st
                     m += 1
                 g += 1
                 for i in range(k):
-                    conn[e, 0] = centre
+                    conn[e, 0] = cc
                     conn[e, 1] = fc
                     conn[e, 2] = faces[pos + 1 + i]
                     conn[e, 3] = faces[pos + 1 + (i + 1) % k]
                     for j in range(4, 8):
-                        conn[e, j] = centre
+                        conn[e, j] = cc
                     kind[e] = 10
                     e += 1
             pos += 1 + k
@@ -365,29 +407,15 @@ def _volumes(conn, kind, pts, vol, box):
     and the cube of its bounding box's longest side."""
     for e in range(kind.size):
         k = kind[e]
-        nn = 4 if k == 10 else (5 if k == 14 else (6 if k == 13 else 8))
-        r = 0.25 if k == 10 else (1.0 / 3.0 if k == 13 else 0.5)
-        t = 0.25 if k == 10 else (0.2 if k == 14 else 0.5)
-        j00 = j01 = j02 = j10 = j11 = j12 = j20 = j21 = j22 = 0.0
-        lo0 = lo1 = lo2 = np.inf
-        hi0 = hi1 = hi2 = -np.inf
-        for i in range(nn):
-            _, dr, ds, dt = shape(k, i, r, r, t)
-            p = conn[e, i]
-            x, y, z = pts[p, 0], pts[p, 1], pts[p, 2]
-            j00 += dr * x
-            j01 += ds * x
-            j02 += dt * x
-            j10 += dr * y
-            j11 += ds * y
-            j12 += dt * y
-            j20 += dr * z
-            j21 += ds * z
-            j22 += dt * z
-            lo0, hi0 = min(lo0, x), max(hi0, x)
-            lo1, hi1 = min(lo1, y), max(hi1, y)
-            lo2, hi2 = min(lo2, z), max(hi2, z)
+        r, s, t = centre(k)
+        _, _, _, j00, j01, j02, j10, j11, j12, j20, j21, j22 = map_point(k, e, conn, pts, r, s, t)
         vol[e] = (j00 * (j11 * j22 - j12 * j21) - j01 * (j10 * j22 - j12 * j20)
                   + j02 * (j10 * j21 - j11 * j20))
-        box[e] = max(hi0 - lo0, hi1 - lo1, hi2 - lo2) ** 3
-
+        side = 0.0
+        for a in range(3):
+            lo, hi = np.inf, -np.inf
+            for i in range(n_nodes(k)):
+                lo = min(lo, pts[conn[e, i], a])
+                hi = max(hi, pts[conn[e, i], a])
+            side = max(side, hi - lo)
+        box[e] = side ** 3

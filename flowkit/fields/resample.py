@@ -26,7 +26,7 @@ import numpy as np
 from ..integrate.threads import run_ranges
 from ..jit import inline, kernel
 from .grid import Grid
-from .mesh import Elements, shape
+from .mesh import Elements, centre, map_point, n_nodes, shape
 from .stored import Source
 
 INSIDE_TOL = 1e-7  # parametric tolerance: nodes on a face, to rounding, are inside
@@ -126,9 +126,18 @@ def locate(el: Elements, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
     _plane_fill(rng, width, ptr.copy(), lists)
     owner = np.full(grid.shape, -1, np.int64)
     rst = np.full(grid.shape + (3,), np.nan)
-    run_ranges(_locate, nx, ptr, lists, rng, grid.x, grid.y, grid.z, el.conn, el.kind, el.points,
-               owner, rst)
+    run_ranges(_locate, nx, ptr, lists, rng, grid.x, grid.y, grid.z, el.conn, el.kind,
+               affine(el).view(np.int8), el.points, owner, rst)
     return owner, rst
+
+
+def affine(el: Elements) -> np.ndarray:
+    """Whether each element's map is affine: every tetrahedron; a hexahedron whose trilinear
+    cross terms vanish (a parallelepiped, as the hexahedra of a snappyHexMesh background are)
+    and a wedge whose top is its base moved (to 1e-12 of the element's size)."""
+    out = np.zeros(el.kind.size, np.bool_)
+    _affine(el.conn, el.kind, el.points, out)
+    return out
 
 
 class Resampled(Source):
@@ -139,10 +148,11 @@ class Resampled(Source):
 
     def __init__(self, el: Elements, owner, rst, values, data="point"):
         self.el, self.owner, self.rst, self.data = el, owner, rst, data
-        v = np.asarray(values)
-        self.values = v if data == "cell" else el.extend(v)
+        self.values, self.extended = np.asarray(values), data == "cell"
 
     def fill(self, out, i0, i1):
+        if not self.extended:  # (the centroids' values, once, when first read)
+            self.values, self.extended = self.el.extend(self.values), True
         owner = self.owner[i0:i1]
         if self.data == "cell":
             v = self.values[self.el.cell[np.maximum(owner, 0)]]
@@ -160,11 +170,10 @@ class Resampled(Source):
 def _bounds(conn, kind, pts, lo, hi):
     for e in range(kind.size):
         k = kind[e]
-        nn = 4 if k == 10 else (5 if k == 14 else (6 if k == 13 else 8))
         for a in range(3):
             lo[e, a] = np.inf
             hi[e, a] = -np.inf
-        for i in range(nn):
+        for i in range(n_nodes(k)):
             p = conn[e, i]
             for a in range(3):
                 lo[e, a] = min(lo[e, a], pts[p, a])
@@ -186,52 +195,85 @@ def _plane_fill(rng, width, at, lists):
             at[i] += 1
 
 
+@kernel()
+def _affine(conn, kind, pts, out):
+    for e in range(kind.size):
+        k = kind[e]
+        if k == 10:
+            out[e] = True
+            continue
+        if k != 12 and k != 13:
+            continue
+        size = 0.0
+        for i in range(1, 4 if k == 13 else 8):
+            for a in range(3):
+                size = max(size, abs(pts[conn[e, i], a] - pts[conn[e, 0], a]))
+        tol = 1e-12 * size
+        flat = True
+        for a in range(3):
+            p0, p1, p2, p3 = (pts[conn[e, 0], a], pts[conn[e, 1], a], pts[conn[e, 2], a],
+                              pts[conn[e, 3], a])
+            if k == 13:  # the top (3, 4, 5) is the base (0, 1, 2) moved by one vector
+                p4, p5 = pts[conn[e, 4], a], pts[conn[e, 5], a]
+                terms = (p3 - p0 - p4 + p1, p3 - p0 - p5 + p2, 0.0, 0.0)
+            else:  # the trilinear map's cross terms
+                p4, p5, p6, p7 = (pts[conn[e, 4], a], pts[conn[e, 5], a], pts[conn[e, 6], a],
+                                  pts[conn[e, 7], a])
+                terms = (p0 - p1 + p2 - p3, p4 - p5 + p6 - p7, p0 - p1 - p4 + p5,
+                         p0 - p3 - p4 + p7)
+            for v in terms:
+                if abs(v) > tol:
+                    flat = False
+        out[e] = flat
+
+
 @inline
-def _invert(e, k, conn, pts, x, y, z):
-    """Parametric (r, s, t) of (x, y, z) in element e of kind k, and whether it lies inside."""
-    nn = 4 if k == 10 else (5 if k == 14 else (6 if k == 13 else 8))
-    r = 0.25 if k == 10 else (1.0 / 3.0 if k == 13 else 0.5)
-    s = r
-    t = 0.25 if k == 10 else (0.2 if k == 14 else 0.5)
-    done = False
-    for _ in range(NEWTON_STEPS):
-        fx, fy, fz = -x, -y, -z
-        j00 = j01 = j02 = j10 = j11 = j12 = j20 = j21 = j22 = 0.0
-        for i in range(nn):
-            n, dr, ds, dt = shape(k, i, r, s, t)
-            p = conn[e, i]
-            px, py, pz = pts[p, 0], pts[p, 1], pts[p, 2]
-            fx += n * px
-            fy += n * py
-            fz += n * pz
-            j00 += dr * px
-            j01 += ds * px
-            j02 += dt * px
-            j10 += dr * py
-            j11 += ds * py
-            j12 += dt * py
-            j20 += dr * pz
-            j21 += ds * pz
-            j22 += dt * pz
-        c0 = j11 * j22 - j12 * j21
-        c1 = j10 * j22 - j12 * j20
-        c2 = j10 * j21 - j11 * j20
-        det = j00 * c0 - j01 * c1 + j02 * c2
-        if det == 0.0 or not math.isfinite(det):
-            return r, s, t, False
-        # Cramer's rule for J d = f
-        d0 = (fx * c0 - j01 * (fy * j22 - j12 * fz) + j02 * (fy * j21 - j11 * fz)) / det
-        d1 = (j00 * (fy * j22 - j12 * fz) - fx * c1 + j02 * (j10 * fz - fy * j20)) / det
-        d2 = (j00 * (j11 * fz - fy * j21) - j01 * (j10 * fz - fy * j20) + fx * c2) / det
-        r -= d0
-        s -= d1
-        t -= d2
-        if max(abs(d0), abs(d1), abs(d2)) < NEWTON_TOL:
-            done = True
-            break
-        if max(abs(r), abs(s), abs(t)) > 1e3:  # far outside: no need to converge
-            return r, s, t, False
-    if not done:
+def _solve(j00, j01, j02, j10, j11, j12, j20, j21, j22, fx, fy, fz):
+    """J d = f by Cramer's rule; ok False where J is singular."""
+    c0 = j11 * j22 - j12 * j21
+    c1 = j10 * j22 - j12 * j20
+    c2 = j10 * j21 - j11 * j20
+    det = j00 * c0 - j01 * c1 + j02 * c2
+    if det == 0.0 or not math.isfinite(det):
+        return 0.0, 0.0, 0.0, False
+    d0 = (fx * c0 - j01 * (fy * j22 - j12 * fz) + j02 * (fy * j21 - j11 * fz)) / det
+    d1 = (j00 * (fy * j22 - j12 * fz) - fx * c1 + j02 * (j10 * fz - fy * j20)) / det
+    d2 = (j00 * (j11 * fz - fy * j21) - j01 * (j10 * fz - fy * j20) + fx * c2) / det
+    return d0, d1, d2, True
+
+
+@inline
+def _invert(e, k, lin, conn, pts, x, y, z):
+    """Parametric (r, s, t) of (x, y, z) in element e of kind k, and whether it lies inside.
+    An affine element (``lin``) is x = p0 + J (r, s, t), J's columns its edges from node 0 to
+    the nodes at r = 1, s = 1 and t = 1: one solve.  Any other by Newton's method."""
+    p0 = conn[e, 0]
+    ok = False
+    if lin:
+        a, b, c = conn[e, 1], conn[e, 3 if k == 12 else 2], conn[e, 4 if k == 12 else 3]
+        r, s, t, ok = _solve(
+            pts[a, 0] - pts[p0, 0], pts[b, 0] - pts[p0, 0], pts[c, 0] - pts[p0, 0],
+            pts[a, 1] - pts[p0, 1], pts[b, 1] - pts[p0, 1], pts[c, 1] - pts[p0, 1],
+            pts[a, 2] - pts[p0, 2], pts[b, 2] - pts[p0, 2], pts[c, 2] - pts[p0, 2],
+            x - pts[p0, 0], y - pts[p0, 1], z - pts[p0, 2])
+    else:
+        r, s, t = centre(k)
+        for _ in range(NEWTON_STEPS):
+            px, py, pz, j00, j01, j02, j10, j11, j12, j20, j21, j22 = map_point(k, e, conn, pts,
+                                                                                r, s, t)
+            fx, fy, fz = px - x, py - y, pz - z
+            d0, d1, d2, solved = _solve(j00, j01, j02, j10, j11, j12, j20, j21, j22, fx, fy, fz)
+            if not solved:
+                break
+            r -= d0
+            s -= d1
+            t -= d2
+            if max(abs(d0), abs(d1), abs(d2)) < NEWTON_TOL:
+                ok = True
+                break
+            if max(abs(r), abs(s), abs(t)) > 1e3:  # far outside: no need to converge
+                break
+    if not ok:
         return r, s, t, False
     lo, hi = -INSIDE_TOL, 1.0 + INSIDE_TOL
     if k == 10:
@@ -245,7 +287,7 @@ def _invert(e, k, conn, pts, x, y, z):
 
 # nogil: planes shared among threads (threads.run_ranges); each node is written by one thread
 @kernel(nogil=True)
-def _locate(start, stop, ptr, lists, rng, gx, gy, gz, conn, kind, pts, owner, rst):
+def _locate(start, stop, ptr, lists, rng, gx, gy, gz, conn, kind, lin, pts, owner, rst):
     for i in range(start, stop):
         x = gx[i]
         for q in range(ptr[i], ptr[i + 1]):
@@ -256,7 +298,7 @@ def _locate(start, stop, ptr, lists, rng, gx, gy, gz, conn, kind, pts, owner, rs
                 for m in range(rng[e, 4], rng[e, 5] + 1):
                     if owner[i, j, m] >= 0:
                         continue
-                    r, s, t, inside = _invert(e, k, conn, pts, x, y, gz[m])
+                    r, s, t, inside = _invert(e, k, lin[e], conn, pts, x, y, gz[m])
                     if inside:
                         owner[i, j, m] = e
                         rst[i, j, m, 0] = r
@@ -276,8 +318,7 @@ def _interpolate(start, stop, owner, rst, conn, kind, v, out):
                 if e < 0:
                     continue
                 k = kind[e]
-                nn = 4 if k == 10 else (5 if k == 14 else (6 if k == 13 else 8))
-                for a in range(nn):
+                for a in range(n_nodes(k)):
                     n, _, _, _ = shape(k, a, rst[i, j, m, 0], rst[i, j, m, 1], rst[i, j, m, 2])
                     p = conn[e, a]
                     for c in range(nc):

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..grid import Grid
-from ..mesh import NAMES, POLYHEDRON, Mesh, MeshError, elements, legacy_faces
+from ..mesh import POLYHEDRON, Mesh, MeshError, elements, legacy_faces
 from ..resample import Resampled, auto_grid, locate, parse_resample
 from ..stored import Stored
 from ._common import ReaderError, existing, foam_units, make_field
@@ -283,6 +283,11 @@ def _shift_faces(faces, starts, base):
 # -- .vtm --------------------------------------------------------------------------------------
 def read_vtm(path, vector="U", block="internal", **opts):
     """The dataset ``block`` of a VTK multiblock file, read as its own file."""
+    return read_vtu(vtm_block(path, block), vector=vector, **opts)
+
+
+def vtm_block(path, block="internal") -> Path:
+    """The .vtu file of the dataset ``block`` of a VTK multiblock file."""
     path = existing(path)
     try:
         root = ET.parse(path).getroot()
@@ -312,7 +317,7 @@ def read_vtm(path, vector="U", block="internal", **opts):
         raise ReaderError(f"{path}: block {name!r} is {target.name}, a surface "
                           f"({target.suffix}), not a volume mesh: only .vtu blocks resample onto "
                           "a grid (the internal mesh is 'internal')")
-    return read_vtu(target, vector=vector, **opts)
+    return target
 
 
-__all__ = ["NAMES", "find_lattice", "read_unstructured", "read_vtm", "read_vtu"]
+__all__ = ["find_lattice", "read_unstructured", "read_vtm", "read_vtu", "vtm_block"]
