@@ -13,6 +13,8 @@ import zlib
 
 import numpy as np
 
+from flowkit.fields.mesh import cube_faces
+
 TET, VOXEL, HEX, WEDGE, PYRAMID, POLY = 10, 11, 12, 13, 14, 42
 A = np.array([[0.3, -1.2, 0.5], [2.0, 0.1, -0.7], [0.4, 0.9, -1.1]])
 B = np.array([0.25, -0.5, 1.5])
@@ -26,12 +28,6 @@ def linear_u(p):
 
 def linear_t(p):
     return np.asarray(p) @ C + 4.0
-
-
-def cube_faces(c):
-    """The six faces of hexahedron c (VTK order), outward."""
-    return [[c[0], c[3], c[2], c[1]], [c[4], c[5], c[6], c[7]], [c[0], c[1], c[5], c[4]],
-            [c[1], c[2], c[6], c[5]], [c[2], c[3], c[7], c[6]], [c[3], c[0], c[4], c[7]]]
 
 
 def block(n=(4, 4, 4), hole=None, kinds="hex"):

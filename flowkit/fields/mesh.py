@@ -163,6 +163,12 @@ def legacy_faces(face_conn, face_ends, poly_faces, poly_ends):
     return out, np.where(nf > 0, starts, -1)
 
 
+def cube_faces(c) -> list[list[int]]:
+    """The six faces of the hexahedron with VTK-ordered nodes ``c``, each listed outward."""
+    return [[c[0], c[3], c[2], c[1]], [c[4], c[5], c[6], c[7]], [c[0], c[1], c[5], c[4]],
+            [c[1], c[2], c[6], c[5]], [c[2], c[3], c[7], c[6]], [c[3], c[0], c[4], c[7]]]
+
+
 POLY_PROBLEMS = {
     0: "its faces do not close (an edge belongs to one face only): open faces",
     1: "a face has fewer than 3 nodes",
