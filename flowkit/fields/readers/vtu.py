@@ -52,15 +52,12 @@ def read_vtu(path, vector="U", data="point", resample=None, shape=None, bounds=N
     mesh, point, cell, time = read_unstructured(path)
     arrays, other = (point, cell) if data == "point" else (cell, point)
     if vector not in arrays and f"{vector}_x" not in arrays:
-        where = ("cell" if data == "point" else "point") if vector in other else None
-        hint = (". Pass data='cell' (--data cell) to use cell data" if data == "point" else "")
-        raise ReaderError(
-            f"{path}: no {data} data array '{vector}'"
-            + (f" (it is {where} data{hint})" if where else "")
-            + f"; {data} data arrays: {', '.join(arrays) or 'none'}"
-            + (f"; {'cell' if data == 'point' else 'point'} data: {', '.join(other)}"
-               if other and not where else "")
-        )
+        kind = "cell" if data == "point" else "point"
+        there = (f" (it is {kind} data" + (": pass data='cell', --data cell)" if kind == "cell"
+                                           else ")")) if vector in other else ""
+        raise ReaderError(f"{path}: no {data} data array '{vector}'{there}; {data} data arrays: "
+                          f"{', '.join(arrays) or 'none'}; {kind} data: "
+                          f"{', '.join(other) or 'none'}")
     notes = []
     if data == "point" and cell:
         notes.append(f"cell data not loaded (pass data='cell' to use it): {', '.join(cell)}")
