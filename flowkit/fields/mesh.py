@@ -72,7 +72,10 @@ class Elements:
     e's nodes (padded with its first node), indices into ``points``: the mesh's points followed
     by the centroids the polyhedra were split about; centroid k is the mean of the mesh points
     ``members[ptr[k]:ptr[k + 1]]``.  ``cell[e]`` is the mesh cell element e belongs to
-    (elements of a cell are consecutive, cells in order)."""
+    (elements of a cell are consecutive, cells in order).  ``lo``, ``hi``: each element's
+    bounding box; ``affine``: whether its map is affine (every tetrahedron; a hexahedron whose
+    trilinear cross terms vanish, a parallelepiped as a snappyHexMesh background is made of; a
+    wedge whose top is its base moved; to 1e-12 of its size): then one solve inverts it."""
 
     points: np.ndarray
     conn: np.ndarray
@@ -81,6 +84,9 @@ class Elements:
     ptr: np.ndarray
     members: np.ndarray
     n_tets: int  # tetrahedra the polyhedra were split into
+    lo: np.ndarray
+    hi: np.ndarray
+    affine: np.ndarray
 
     def extend(self, values: np.ndarray) -> np.ndarray:
         """Point values (n_mesh_points, ...) with the centroids' values appended (float64)."""
@@ -143,9 +149,14 @@ def elements(mesh: Mesh) -> Elements:
     if ptr.size > 1:
         sums = np.add.reduceat(pts[members], ptr[:-1], axis=0)
         pts = np.concatenate([pts, sums / np.diff(ptr)[:, None]])
-    el = Elements(np.ascontiguousarray(pts, np.float64), conn, kind, cell, ptr, members,
-                  int(n_el[~fixed].sum()))
-    _check_volumes(el, types)
+    pts = np.ascontiguousarray(pts, np.float64)
+    det = np.empty(m)
+    lo, hi = np.empty((m, 3)), np.empty((m, 3))
+    lin = np.zeros(m, np.int8)
+    _geometry(conn, kind, pts, det, lo, hi, lin)
+    el = Elements(pts, conn, kind, cell, ptr, members, int(n_el[~fixed].sum()), lo, hi,
+                  lin.view(np.bool_))
+    _check_volumes(el, types, det)
     return el
 
 
@@ -177,13 +188,11 @@ POLY_PROBLEMS = {
 }
 
 
-def _check_volumes(el: Elements, types: np.ndarray) -> None:
-    """Inverted (wrong orientation) or zero-volume cells are errors.  A polyhedron's volume is
-    the sum of its tetrahedra's; only its size is checked (faces may be listed either way
-    round)."""
-    det = np.empty(el.kind.size)
-    box = np.empty(el.kind.size)
-    _volumes(el.conn, el.kind, el.points, det, box)
+def _check_volumes(el: Elements, types: np.ndarray, det: np.ndarray) -> None:
+    """Inverted (wrong orientation) or zero-volume cells are errors (``det``: det J at each
+    element's parametric centre).  A polyhedron's volume is the sum of its tetrahedra's; only
+    its size is checked (faces may be listed either way round)."""
+    box = np.max(el.hi - el.lo, axis=1) ** 3
     scale = np.full(el.kind.size, 1.0 / 6.0)  # a polyhedron's tetrahedra: either orientation
     fixed = types[el.cell] != POLYHEDRON
     for k, s in SIGN.items():
@@ -408,20 +417,38 @@ def _fill(types, connectivity, offsets, faces, foff, el_start, ctr_start, mem_st
 
 
 @kernel()
-def _volumes(conn, kind, pts, vol, box):
-    """det J at each element's parametric centre (a tetrahedron's: six times its signed volume)
-    and the cube of its bounding box's longest side."""
+def _geometry(conn, kind, pts, det, lo, hi, lin):
+    """Per element: det J at its parametric centre (a tetrahedron's: six times its signed
+    volume), its bounding box, and whether its map is affine."""
     for e in range(kind.size):
         k = kind[e]
         r, s, t = centre(k)
         _, _, _, j00, j01, j02, j10, j11, j12, j20, j21, j22 = map_point(k, e, conn, pts, r, s, t)
-        vol[e] = (j00 * (j11 * j22 - j12 * j21) - j01 * (j10 * j22 - j12 * j20)
+        det[e] = (j00 * (j11 * j22 - j12 * j21) - j01 * (j10 * j22 - j12 * j20)
                   + j02 * (j10 * j21 - j11 * j20))
-        side = 0.0
+        size = 0.0
         for a in range(3):
-            lo, hi = np.inf, -np.inf
+            lo[e, a], hi[e, a] = np.inf, -np.inf
             for i in range(n_nodes(k)):
-                lo = min(lo, pts[conn[e, i], a])
-                hi = max(hi, pts[conn[e, i], a])
-            side = max(side, hi - lo)
-        box[e] = side ** 3
+                lo[e, a] = min(lo[e, a], pts[conn[e, i], a])
+                hi[e, a] = max(hi[e, a], pts[conn[e, i], a])
+            size = max(size, hi[e, a] - lo[e, a])
+        if k == 10:
+            lin[e] = 1
+        elif k == 12 or k == 13:
+            flat = True
+            for a in range(3):
+                p0, p1, p2, p3 = (pts[conn[e, 0], a], pts[conn[e, 1], a], pts[conn[e, 2], a],
+                                  pts[conn[e, 3], a])
+                if k == 13:  # the top (3, 4, 5) is the base (0, 1, 2) moved by one vector
+                    p4, p5 = pts[conn[e, 4], a], pts[conn[e, 5], a]
+                    terms = (p3 - p0 - p4 + p1, p3 - p0 - p5 + p2, 0.0, 0.0)
+                else:  # the trilinear map's cross terms
+                    p4, p5, p6, p7 = (pts[conn[e, 4], a], pts[conn[e, 5], a],
+                                      pts[conn[e, 6], a], pts[conn[e, 7], a])
+                    terms = (p0 - p1 + p2 - p3, p4 - p5 + p6 - p7, p0 - p1 - p4 + p5,
+                             p0 - p3 - p4 + p7)
+                for v in terms:
+                    if abs(v) > 1e-12 * size:
+                        flat = False
+            lin[e] = 1 if flat else 0

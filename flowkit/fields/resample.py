@@ -68,9 +68,7 @@ def parse_resample(spec):
 
 def cell_sizes(el: Elements) -> np.ndarray:
     """Each mesh cell's size: the cube root of its bounding box's volume."""
-    lo = np.empty((el.kind.size, 3))
-    hi = np.empty((el.kind.size, 3))
-    _bounds(el.conn, el.kind, el.points, lo, hi)
+    lo, hi = el.lo, el.hi
     starts = np.flatnonzero(np.concatenate([[True], el.cell[1:] != el.cell[:-1]]))
     ext = np.maximum.reduceat(hi, starts) - np.minimum.reduceat(lo, starts)
     return np.cbrt(np.prod(np.maximum(ext, 0.0), axis=1))
@@ -107,9 +105,7 @@ def auto_grid(el: Elements, bounds, spec) -> tuple[Grid, str]:
 def locate(el: Elements, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
     """(element holding each grid node, -1 for none; its parametric coordinates (r, s, t)),
     shaped (nx, ny, nz) and (nx, ny, nz, 3)."""
-    lo = np.empty((el.kind.size, 3))
-    hi = np.empty((el.kind.size, 3))
-    _bounds(el.conn, el.kind, el.points, lo, hi)
+    lo, hi = el.lo, el.hi
     pad = 1e-9 * max(float(np.max(np.abs(el.points))), 1e-300)
     rng = np.empty((el.kind.size, 6), np.int64)
     for a, c in enumerate(grid.axes):
@@ -127,17 +123,8 @@ def locate(el: Elements, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
     owner = np.full(grid.shape, -1, np.int64)
     rst = np.full(grid.shape + (3,), np.nan)
     run_ranges(_locate, nx, ptr, lists, rng, grid.x, grid.y, grid.z, el.conn, el.kind,
-               affine(el).view(np.int8), el.points, owner, rst)
+               el.affine.view(np.int8), el.points, owner, rst)
     return owner, rst
-
-
-def affine(el: Elements) -> np.ndarray:
-    """Whether each element's map is affine: every tetrahedron; a hexahedron whose trilinear
-    cross terms vanish (a parallelepiped, as the hexahedra of a snappyHexMesh background are)
-    and a wedge whose top is its base moved (to 1e-12 of the element's size)."""
-    out = np.zeros(el.kind.size, np.bool_)
-    _affine(el.conn, el.kind, el.points, out)
-    return out
 
 
 class Resampled(Source):
@@ -167,20 +154,6 @@ class Resampled(Source):
 
 # -- compiled ----------------------------------------------------------------------------------
 @kernel()
-def _bounds(conn, kind, pts, lo, hi):
-    for e in range(kind.size):
-        k = kind[e]
-        for a in range(3):
-            lo[e, a] = np.inf
-            hi[e, a] = -np.inf
-        for i in range(n_nodes(k)):
-            p = conn[e, i]
-            for a in range(3):
-                lo[e, a] = min(lo[e, a], pts[p, a])
-                hi[e, a] = max(hi[e, a], pts[p, a])
-
-
-@kernel()
 def _plane_counts(rng, width, count):
     for e in range(width.size):
         for i in range(rng[e, 0], rng[e, 0] + width[e]):
@@ -193,38 +166,6 @@ def _plane_fill(rng, width, at, lists):
         for i in range(rng[e, 0], rng[e, 0] + width[e]):
             lists[at[i]] = e
             at[i] += 1
-
-
-@kernel()
-def _affine(conn, kind, pts, out):
-    for e in range(kind.size):
-        k = kind[e]
-        if k == 10:
-            out[e] = True
-            continue
-        if k != 12 and k != 13:
-            continue
-        size = 0.0
-        for i in range(1, 4 if k == 13 else 8):
-            for a in range(3):
-                size = max(size, abs(pts[conn[e, i], a] - pts[conn[e, 0], a]))
-        tol = 1e-12 * size
-        flat = True
-        for a in range(3):
-            p0, p1, p2, p3 = (pts[conn[e, 0], a], pts[conn[e, 1], a], pts[conn[e, 2], a],
-                              pts[conn[e, 3], a])
-            if k == 13:  # the top (3, 4, 5) is the base (0, 1, 2) moved by one vector
-                p4, p5 = pts[conn[e, 4], a], pts[conn[e, 5], a]
-                terms = (p3 - p0 - p4 + p1, p3 - p0 - p5 + p2, 0.0, 0.0)
-            else:  # the trilinear map's cross terms
-                p4, p5, p6, p7 = (pts[conn[e, 4], a], pts[conn[e, 5], a], pts[conn[e, 6], a],
-                                  pts[conn[e, 7], a])
-                terms = (p0 - p1 + p2 - p3, p4 - p5 + p6 - p7, p0 - p1 - p4 + p5,
-                         p0 - p3 - p4 + p7)
-            for v in terms:
-                if abs(v) > tol:
-                    flat = False
-        out[e] = flat
 
 
 @inline
