@@ -39,6 +39,7 @@ OPTION_SETS = {
     "rosenbrock": ("the Rosenbrock method", {"method": "ros34pw2"}),
     "pathlines": ("pathlines", {}),
     "even": ("evenly spaced seeding (seeds even:...)", {"direction": "both"}),
+    "meshes": ("unstructured meshes read (.vtu, .vtm: cell location)", {}),
 }
 EVEN_SPEC = "even:0.25d"  # on the stand-in: a handful of lines, some cut (the walk's two queries)
 
@@ -95,6 +96,8 @@ def _option_set(name: str, dtype):
     from .integrate.options import TraceOptions
 
     opts = TraceOptions(max_length=4.0, **OPTION_SETS[name][1])
+    if name == "meshes":
+        return _meshes
     if name == "pathlines":
         return lambda: _pathlines(opts, dtype)
     return lambda: _trace(opts, EVEN_SPEC if name == "even" else None, dtype)
@@ -131,6 +134,27 @@ def _trace(opts, even=None, dtype=np.float64):
     field = stand_in(scalars or ("T",), dtype=dtype)
     opts = opts.replace(max_length=min(opts.max_length, 4.0))
     return trace(field, SEEDS, opts) if even is None else trace_spec(field, even, opts)
+
+
+def _meshes() -> None:
+    """A hexahedron and a polyhedron beside it (the cube, its faces in VTK 9.4's layout too)
+    resampled: the kernels of fields/mesh.py and fields/resample.py, whatever the mesh (they
+    read int64 and float64 arrays only)."""
+    from .fields.mesh import Mesh, cube_faces, elements, legacy_faces
+    from .fields.resample import Resampled, auto_grid, locate
+
+    pts = np.array([[x, y, z] for z in (0.0, 1.0) for y in (0.0, 1.0) for x in (0.0, 1.0, 2.0)])
+    hexa = [0, 1, 4, 3, 6, 7, 10, 9]
+    cube = [1, 2, 5, 4, 7, 8, 11, 10]
+    faces = cube_faces(cube)
+    f_ends = np.cumsum([len(f) for f in faces])
+    stream, starts = legacy_faces(np.concatenate(faces), f_ends, np.arange(6), np.array([0, 6]))
+    mesh = Mesh(pts, np.array(hexa + cube), np.array([0, 8, 16]), np.array([12, 42]),
+                stream, starts)
+    el = elements(mesh)
+    grid, _ = auto_grid(el, np.array([[0.0, 2.0], [0.0, 1.0], [0.0, 1.0]]), ("shape", (5, 3, 3)))
+    owner, rst = locate(el, grid)
+    Resampled(el, owner, rst, pts[:, 0]).fill(np.empty(grid.shape), 0, grid.shape[0])
 
 
 def _render(plan, lines) -> None:

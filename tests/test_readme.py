@@ -57,7 +57,7 @@ def test_readme_python_example_runs(tmp_path, monkeypatch):
 def test_readme_flowkit_lines_run(tmp_path, monkeypatch, capsys, display):
     cmds = readme_commands()
     assert [c[0] for c in cmds] == ["info", "info", "trace", "trace", "trace", "info", "sample",
-                                    "render", "render",
+                                    "resample", "render", "render",
                                     "render", "scene", "view", "view", "trace", "bench",
                                     "compile"], cmds
     (tmp_path / "run.vtu").symlink_to((SHARED / "hotroom_t2000.vtu").resolve())
@@ -97,6 +97,8 @@ def test_readme_flowkit_lines_run(tmp_path, monkeypatch, capsys, display):
     reasons = __import__("flowkit").read_lines("even.h5").line_data["reason"]
     assert (reasons == __import__("flowkit").integrate.reasons.Reason.TOO_CLOSE).any()
     assert len(__import__("flowkit").read_lines("hot.h5")) == 500
+    grid = __import__("flowkit").fields.load_field("grid.h5")
+    assert grid.grid.shape == (81, 41, 81) and "0 of 269001 nodes lie in no cell" in grid.notes[0]
     gif = Image.open("arrows.gif")
     assert gif.n_frames == 24 and gif.size == (320, 180)
     assert "attributes traced: speed, T" in outputs["scene"][0]

@@ -1,7 +1,7 @@
 """``flowkit compile [WHAT ...]``: compile the kernels ahead of use, once per machine or image.
 
 WHAT is an option set (default, attributes, rk4, dop853, no-cell-aware, lockstep, rosenbrock,
-pathlines, or all of them) or a scene file (its trace options and the attributes its styles
+pathlines, even, meshes for reading unstructured meshes, or all of them) or a scene file (its trace options and the attributes its styles
 read, and its views rendered small, which compiles the renderer's level-of-detail kernels);
 without WHAT, the default options.  An option set compiles for fields stored as float64 and as
 float32 (``--types``: a kernel compiles once per array type it reads); a scene for the type its

@@ -14,6 +14,7 @@ import importlib
 from pathlib import Path
 
 from . import CLIError
+from ._field import add_mesh_options, mesh_options
 
 
 def register(subparsers) -> None:
@@ -21,7 +22,8 @@ def register(subparsers) -> None:
         "info", help="summarise a field, series or lines file", description=__doc__
     )
     p.add_argument(
-        "file", nargs="?", help="field file (.npz .npy .h5 .vti .vtr .vtu .nc), .series or glob"
+        "file", nargs="?",
+        help="field file (.npz .npy .h5 .vti .vtr .vtu .vtm .nc), .series or glob"
     )
     p.add_argument("--vector", default=None, help="vector array name (default U, or the file's)")
     p.add_argument(
@@ -31,6 +33,7 @@ def register(subparsers) -> None:
     p.add_argument(
         "--data", choices=["point", "cell"], help="VTK files: point data (default) or cell data"
     )
+    add_mesh_options(p)
     p.add_argument("--stats", action="store_true",
                    help="ranges and NaN/inf counts of every array (reads the data, a slab at a "
                         "time)")
@@ -50,14 +53,16 @@ def run(args) -> int:
     print(
         describe(
             args.file, vector=args.vector, snapshot=args.snapshot, time=args.time, data=args.data,
-            stats=args.stats,
+            stats=args.stats, **mesh_options(args),
         )
     )
     return 0
 
 
-def describe(file, vector=None, snapshot=None, time=None, data=None, stats=False) -> str:
-    """The text ``flowkit info`` prints (``stats``: with ranges and NaN/inf counts)."""
+def describe(file, vector=None, snapshot=None, time=None, data=None, stats=False,
+             **mesh) -> str:
+    """The text ``flowkit info`` prints (``stats``: with ranges and NaN/inf counts; ``mesh``:
+    resample= and block= for unstructured meshes)."""
     from ..fields.readers import HDF5_EXT, NETCDF_EXT, load_field, load_series, root_format
     from ..fields.readers._common import select_snapshot
 
@@ -66,7 +71,7 @@ def describe(file, vector=None, snapshot=None, time=None, data=None, stats=False
         return describe_lines(path)
     opts = {
         k: v for k, v in (("snapshot", snapshot), ("time", time), ("data", data)) if v is not None
-    }
+    } | mesh
     head = []
     is_glob = any(c in str(file) for c in "*?[") and not path.exists()
     if is_glob or path.suffix.lower() in (".series", *HDF5_EXT, *NETCDF_EXT):

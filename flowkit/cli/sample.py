@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import CLIError
+from ._field import add_mesh_options, mesh_options
 
 
 def register(subparsers) -> None:
@@ -24,6 +25,7 @@ def register(subparsers) -> None:
     p.add_argument("--vector", default=None, help="vector array name (default U)")
     p.add_argument("--snapshot", type=int, help="snapshot position in a series file")
     p.add_argument("--time", type=float, help="snapshot time in a series file")
+    add_mesh_options(p)
     p.set_defaults(func=run)
 
 
@@ -44,7 +46,7 @@ def run(args) -> int:
         rename[old.strip()] = new.strip()
     lines = read_lines(args.lines)
     opts = {k: v for k, v in (("snapshot", args.snapshot), ("time", args.time)) if v is not None}
-    field = load_field(args.field, vector=args.vector, **opts)
+    field = load_field(args.field, vector=args.vector, **opts, **mesh_options(args))
     result = sample(lines, field, names, rename=rename)
     write_lines(result, out, position_dtype=str(lines.points.dtype))
     nan = nan_counts(result)

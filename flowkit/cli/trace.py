@@ -16,6 +16,7 @@ def register(subparsers) -> None:
     from ..distributed.cli import add_scale_options
     from ..integrate.methods import REGISTRY, describe
     from ..integrate.seeds import SPEC_HELP
+    from ._field import add_mesh_options
 
     p = subparsers.add_parser("trace", help="trace streamlines through a field into an HDF5 file",
                               description=__doc__)
@@ -52,6 +53,7 @@ def register(subparsers) -> None:
                    help="memory budget, e.g. 4GB (default: what the machine has free); a field "
                         "that does not fit is read brick by brick, only where lines go")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    add_mesh_options(p)
     add_scale_options(p)
     p.set_defaults(func=run)
 
@@ -63,6 +65,7 @@ def run(args) -> int:
     from ..integrate.trace import trace_to_file
     from ..io.atomic import check_output
     from . import CLIError
+    from ._field import mesh_options
 
     check_output(args.output)  # before any work
     even = parse_even_spec(args.seeds)
@@ -77,6 +80,10 @@ def run(args) -> int:
     from ..distributed import cli as scale
 
     if scale.wanted(args):  # --workers, --scheduler, series, pathlines: flowkit/distributed/cli.py
+        if mesh_options(args):
+            raise CLIError("flowkit trace: --resample and --block read one mesh; for series and "
+                           "workers, resample each snapshot once (flowkit resample MESH -o "
+                           "FIELD.h5) and trace those files")
         if even is not None or args.prune:
             raise CLIError("flowkit trace: --seeds even and --prune place lines against each "
                            "other in one process; they do not run on workers, series or pathlines")
@@ -89,7 +96,7 @@ def run(args) -> int:
             prune = parse_prune(args.prune)
         except ValueError as e:
             raise CLIError(f"flowkit trace: {e}") from None
-    field = load_field(args.field, vector=args.vector)
+    field = load_field(args.field, vector=args.vector, **mesh_options(args))
     seeds = None if even is not None else parse_seed_spec(args.seeds, field)
     if math.isinf(opts.max_length) and math.isinf(opts.max_time) and args.max_steps == 100_000:
         print("flowkit trace: note: no --max-length or --max-time; lines end at the boundary, "

@@ -100,8 +100,11 @@ class LinesCache:
             seed_in["file_digest"] = self._digest(Path(seeds))
         opts = {k: v for k, v in dataclasses.asdict(plan.options).items()
                 if k not in ("attributes", "progress", "budget", "memory")}  # (not the lines)
-        return {"field": {"digest": self._digest(Path(path)), "snapshot_in_file": inner,
-                          "vector": plan.scene.field.vector},
+        field = {"digest": self._digest(Path(path)), "snapshot_in_file": inner,
+                 "vector": plan.scene.field.vector}
+        if plan.scene.field.resample is not None:  # (absent otherwise: older keys stay valid)
+            field["resample"] = plan.scene.field.resample
+        return {"field": field,
                 "seeds": seed_in, "trace": opts, "flowkit": __version__, "code": code_digest()}
 
     @staticmethod

@@ -9,6 +9,7 @@
     # dataset = "hotroom"    # built-in demo data
     vector = "U"
     snapshot = "all"         # "all" (default), a position (negative from the end) or a list
+    # resample = "160,120,60"  # unstructured meshes: NX,NY,NZ or "spacing:DX" (default: auto)
 
     [seeds]
     spec = "plane:0.5,0.5,0.5:9,0,0:0,0,9:16,16"   # any --seeds spec (files relative to here)
@@ -94,6 +95,7 @@ class FieldSource:
     location: str              # absolute path, glob, or dataset name
     vector: str = "U"
     snapshot: str | int | tuple[int, ...] = "all"
+    resample: str | None = None  # unstructured meshes: the grid (load_field's resample=)
 
 
 @dataclass(frozen=True)
@@ -193,7 +195,7 @@ def _string(where, key, v) -> str:
 
 
 def _field(where: str, t: dict, base: Path) -> FieldSource:
-    _check_keys(where, t, {"file", "series", "dataset", "vector", "snapshot"})
+    _check_keys(where, t, {"file", "series", "dataset", "vector", "snapshot", "resample"})
     given = [k for k in ("file", "series", "dataset") if k in t]
     if len(given) != 1:
         raise SceneError(f"{where}: give exactly one of file, series or dataset "
@@ -210,7 +212,15 @@ def _field(where: str, t: dict, base: Path) -> FieldSource:
             _fail(where, "file", t[kind], f"an existing file (looked for {loc})")
     vector = _name(where, "vector", t.get("vector", "U"))
     snap = t.get("snapshot", "all")
-    return FieldSource(kind, loc, vector, snapshot_selection(where, "snapshot", snap))
+    resample = t.get("resample")
+    if resample is not None:
+        from ..fields.resample import parse_resample
+
+        try:
+            parse_resample(_string(where, "resample", resample))
+        except ValueError:
+            _fail(where, "resample", resample, '"NX,NY,NZ", "spacing:DX" or "auto"')
+    return FieldSource(kind, loc, vector, snapshot_selection(where, "snapshot", snap), resample)
 
 
 def snapshot_selection(where: str, key: str, v) -> str | int | tuple[int, ...]:

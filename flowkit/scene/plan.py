@@ -42,8 +42,9 @@ class Snapshot:
     time: float
     ref: Path | SnapshotRef
 
-    def load(self, vector: str):
-        return load_field(self.ref, vector=vector)
+    def load(self, vector: str, resample: str | None = None):
+        opts = {} if resample is None else {"resample": resample}
+        return load_field(self.ref, vector=vector, **opts)
 
 
 @dataclass(frozen=True)

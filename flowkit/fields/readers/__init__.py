@@ -8,15 +8,17 @@ Formats by extension (module docstrings give the details):
   ``scalars={"T": "/T"}``, ``order="xyz"|"zyx"``.
 - ``.vti`` / ``.vtr`` (vtk_xml.py): VTK XML ImageData / RectilinearGrid, every encoding;
   ``data="cell"`` for cell data.
-- ``.vtu`` (vtu.py, needs meshio): lattice rebuilt exactly, else ``shape=``, ``bounds=`` or
-  ``grid=`` to resample; ``data="cell"`` for cell data.
+- ``.vtu`` (vtu.py): any mix of tetrahedra, pyramids, wedges, hexahedra and polyhedra, every
+  encoding; a lattice of nodes is rebuilt exactly, anything else resampled by cell location
+  (``resample="NX,NY,NZ"``, ``"spacing:DX"``, ``"auto"`` or a Grid; ``bounds=``); ``data="cell"``
+  for cell data.  ``.vtm`` multiblock files (foamToVTK's): ``block=`` (default "internal").
 - ``.nc`` ``.nc4`` ``.netcdf`` (xarray_io.py): ``u=, v=, w=, scalars=, dims=``; ``.zarr``
   stores (a directory) the same way; an xarray Dataset (dask-backed or not) through
   ``from_xarray``.
 
 Arrays are read when first used, a slab at a time, in the type the file stores (float32 or
 float64; ``fields/stored.py``), except where the format needs the whole file parsed (.npz,
-.vti/.vtr, .vtu).
+.vti/.vtr, .vtu, .vtm).
 - ``.series`` (ParaView series JSON): one snapshot of the series, loaded by its own reader.
 
 Options every reader takes: ``vector`` (default "U"), ``periodic`` and ``period`` (see Grid).
@@ -34,7 +36,7 @@ from .hdf5 import read_hdf5, root_format, snapshot_times
 from .npz import read_npy, read_npz
 from .series import SnapshotRef, read_glob, read_series_json
 from .vtk_xml import read_vtk_xml
-from .vtu import find_lattice, read_vtu
+from .vtu import find_lattice, read_vtm, read_vtu
 from .xarray_io import from_xarray, netcdf_times, read_netcdf, read_zarr
 
 HDF5_EXT = (".h5", ".hdf5", ".hdf")
@@ -45,6 +47,7 @@ READERS = {
     ".vti": read_vtk_xml,
     ".vtr": read_vtk_xml,
     ".vtu": read_vtu,
+    ".vtm": read_vtm,
     **{e: read_hdf5 for e in HDF5_EXT},
     **{e: read_netcdf for e in NETCDF_EXT},
     ".zarr": read_zarr,

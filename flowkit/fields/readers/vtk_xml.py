@@ -47,7 +47,7 @@ def read_vtk_xml(path, vector="U", data="point", periodic=(False, False, False),
     if kind not in KINDS.values():
         raise ReaderError(
             f"{path}: VTK XML type '{kind}' is not ImageData or RectilinearGrid "
-            "(.vtu files are read through meshio)"
+            "(.vtu files are read by vtu.py)"
         )
     grid_el = doc.find(doc.root, kind)
     whole = _extent(path, grid_el.get("WholeExtent"), "WholeExtent")

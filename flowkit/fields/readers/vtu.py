@@ -1,130 +1,138 @@
-"""VTK unstructured grids (.vtu, e.g. from OpenFOAM's foamToVTK) through meshio (the ``io`` extra).
+"""VTK unstructured grids: ``.vtu`` (e.g. OpenFOAM's foamToVTK) and the ``.vtm`` multiblock files
+foamToVTK writes beside them, parsed by the XML reader of ``vtk_xml.py`` (every encoding).
 
-When the nodes lie on a rectilinear lattice the grid is rebuilt exactly (``find_lattice``).
-Otherwise, or when ``shape=`` / ``grid=`` is given, the arrays are resampled onto a grid by
-piecewise-linear interpolation on a Delaunay triangulation of the nodes (scipy
-LinearNDInterpolator), NaN outside the nodes' convex hull; Field.notes states it.
+Cells: tetrahedra, pyramids, wedges, hexahedra, voxels and polyhedra (VTK_POLYHEDRON, in the
+legacy ``faces``/``faceoffsets`` layout foamToVTK writes, or VTK 9.4's ``face_connectivity``
+layout), in any mix; several pieces are joined.
 
-Point data by default; ``data="cell"`` uses cell data placed at the cell centroids (the mean of
-each cell's nodes), which on a hexahedral lattice form the lattice of cell centres.
+When the nodes lie on a rectilinear lattice and no ``resample`` is asked for, the grid is
+rebuilt exactly (``find_lattice``).  Otherwise the data is resampled onto a grid by cell
+location (``fields/resample.py``): each grid node is interpolated in the mesh cell that
+contains it; nodes in no cell (obstacles, outside) are NaN.  ``resample``: "NX,NY,NZ" or
+(nx, ny, nz), "spacing:DX", "auto" (the default when the nodes are no lattice: spacing from
+the mesh's fine cells, under a node cap), or a Grid; ``bounds`` restricts the grid's box
+(default: the mesh's bounds).  Field.notes states the grid, the method and the NaN count.
+
+Point data by default.  ``data="cell"``: cell data, each node taking its cell's value (constant
+per cell, not averaged to points); on a lattice, the values are placed at the cell centroids.
+
+``.vtm``: ``block`` names the dataset to read (default "internal", foamToVTK's volume mesh; a
+path such as "boundary/inlet" or the last part of it); patches are surfaces (.vtp) and
+cannot be resampled onto a volume grid, which the error says.
 """
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
 import numpy as np
 
 from ..grid import Grid
+from ..mesh import POLYHEDRON, Mesh, MeshError, elements, legacy_faces
+from ..resample import Resampled, auto_grid, locate, parse_resample
+from ..stored import Stored
 from ._common import ReaderError, existing, foam_units, make_field
+from .vtk_xml import _Document
 
 
-def read_vtu(
-    path,
-    vector="U",
-    data="point",
-    shape=None,
-    bounds=None,
-    grid=None,
-    rtol=1e-6,
-    periodic=(False, False, False),
-    period=None,
-):
+def read_vtu(path, vector="U", data="point", resample=None, shape=None, bounds=None, grid=None,
+             rtol=1e-6, periodic=(False, False, False), period=None):
     path = existing(path)
-    try:
-        import meshio.vtu
-    except ImportError:
-        raise ReaderError(
-            f"{path}: reading .vtu files needs meshio, in the 'io' extra: pip install 'flowkit[io]'"
-        ) from None
     if data not in ("point", "cell"):
         raise ReaderError(f"{path}: data must be 'point' or 'cell', got {data!r}")
+    if shape is not None:  # (the older spelling of resample=(nx, ny, nz))
+        resample = tuple(shape)
+    if grid is not None:
+        resample = grid
     try:
-        mesh = meshio.vtu.read(path)  # meshio.read would sys.exit() on a damaged file
-    except Exception as e:  # noqa: BLE001 - meshio raises assorted types on damaged files
-        raise ReaderError(
-            f"{path}: VTK file is truncated or corrupt ({type(e).__name__}: {e})"
-        ) from None
-    point = dict(mesh.point_data)
-    cell = {
-        n: np.concatenate([np.asarray(b) for b in blocks]) for n, blocks in mesh.cell_data.items()
-    }
+        spec = parse_resample(resample)
+    except ValueError as e:
+        raise ReaderError(f"{path}: {e}") from None
+    mesh, point, cell, time = read_unstructured(path)
     arrays, other = (point, cell) if data == "point" else (cell, point)
-    if vector not in arrays and vector in other:
-        raise ReaderError(
-            f"{path}: array '{vector}' is {'cell' if data == 'point' else 'point'} data, "
-            f"not {data} data; {data} data arrays: {', '.join(arrays) or 'none'}"
-            + (
-                ". Pass data='cell' to use cell data (values at cell centroids)"
-                if data == "point"
-                else ""
-            )
-        )
+    if vector not in arrays and f"{vector}_x" not in arrays:
+        kind = "cell" if data == "point" else "point"
+        there = (f" (it is {kind} data" + (": pass data='cell', --data cell)" if kind == "cell"
+                                           else ")")) if vector in other else ""
+        raise ReaderError(f"{path}: no {data} data array '{vector}'{there}; {data} data arrays: "
+                          f"{', '.join(arrays) or 'none'}; {kind} data: "
+                          f"{', '.join(other) or 'none'}")
     notes = []
-    if data == "point":
-        pts = np.asarray(mesh.points, dtype=np.float64)
-        if cell:
-            notes.append(f"cell data not loaded (pass data='cell' to use it): {', '.join(cell)}")
-    else:
-        pts = np.concatenate(
-            [mesh.points[b.data].astype(np.float64).mean(axis=1) for b in mesh.cells]
-        )
-        notes.append(
-            "cell data: each value placed at its cell centroid (mean of the cell's nodes); "
-            "not averaged to points"
-        )
-    arrays = {
-        n: a.reshape(a.shape[0], -1).squeeze(-1) if a.ndim == 2 and a.shape[1] == 1 else a
-        for n, a in arrays.items()
-    }
+    if data == "point" and cell:
+        notes.append(f"cell data not loaded (pass data='cell' to use it): {', '.join(cell)}")
     skipped = [n for n, a in arrays.items() if a.ndim > 2 or (a.ndim == 2 and a.shape[1] != 3)]
     arrays = {n: a for n, a in arrays.items() if n not in skipped}
     if skipped:
         notes.append(f"arrays with neither 1 nor 3 components not loaded: {', '.join(skipped)}")
-    tv = mesh.field_data.get("TimeValue")
-    time = None if tv is None else float(np.asarray(tv).ravel()[0])
-    if grid is None and shape is None:
-        found = find_lattice(pts, rtol)
-        if isinstance(found, str):
-            raise ReaderError(
-                f"{path}: the {len(pts)} {'nodes' if data == 'point' else 'cell centroids'} "
-                f"do not lie on a rectilinear lattice ({found}); pass shape=(nx, ny, nz) "
-                "and optionally bounds=((x0, x1), (y0, y1), (z0, z1)) to resample"
-            )
-        axes, ijk = found
-        dev = max(float(np.abs(pts[:, a] - axes[a][ijk[:, a]]).max()) for a in range(3))
-        dims = tuple(c.size for c in axes)
-        nodes = {}
-        for n, a in arrays.items():
-            out = np.empty(dims + a.shape[1:], a.dtype)
-            out[ijk[:, 0], ijk[:, 1], ijk[:, 2]] = a
-            nodes[n] = out
-        notes.insert(
-            0,
-            f"rectilinear lattice rebuilt exactly from {len(pts)} unstructured "
-            f"{'nodes' if data == 'point' else 'cell centroids'}: each maps to one "
-            f"(i, j, k) and every lattice position is filled exactly once "
-            f"(largest node offset from its lattice line {dev:.3g})",
-        )
-        units, length = foam_units(path, nodes)
-        return make_field(
-            path, *axes, nodes, vector, time=time, notes=notes, periodic=periodic, period=period,
-            units=units, length_units=length,
-        )
-    target = grid if grid is not None else _grid(path, pts, shape, bounds)
-    nodes, note = resample(pts, arrays, target)
-    notes.insert(0, note)
+    if spec is None:
+        lattice = _lattice(path, mesh, arrays, data, rtol, notes)
+        if lattice is not None:
+            axes, nodes = lattice
+            units, length = foam_units(path, nodes)
+            return make_field(path, *axes, nodes, vector, time=time, notes=notes,
+                              periodic=periodic, period=period, units=units, length_units=length)
+        spec = ("auto", None)
+    try:
+        el = elements(mesh)
+    except MeshError as e:
+        raise ReaderError(f"{path}: {e}") from None
+    lo, hi = mesh.points.min(0), mesh.points.max(0)
+    box = np.stack([lo, hi], 1) if bounds is None else np.asarray(bounds, float)
+    if box.shape != (3, 2) or np.any(box[:, 1] <= box[:, 0]):
+        raise ReaderError(f"{path}: resampling bounds {box.tolist()} must be ((x0, x1), "
+                          "(y0, y1), (z0, z1)) with x0 < x1 etc.")
+    if isinstance(spec, Grid):
+        target, why = spec, "as given"
+    else:
+        target, why = auto_grid(el, box, spec)
+    owner, rst = locate(el, target)
+    nodes = {n: Stored(target.shape + a.shape[1:], a.dtype, Resampled(el, owner, rst, a, data),
+                       f"{path}: {n}") for n, a in arrays.items()}
+    empty = int((owner < 0).sum())
+    notes.insert(0, resample_note(mesh, el, target, why, data, empty))
     units, length = foam_units(path, nodes)
-    return make_field(
-        path,
-        *target.axes,
-        nodes,
-        vector,
-        time=time,
-        notes=notes,
-        units=units,
-        length_units=length,
-        periodic=periodic if grid is None else grid.periodic,
-        period=period if grid is None else grid.period,
-    )
+    g = spec if isinstance(spec, Grid) else None
+    return make_field(path, *target.axes, nodes, vector, time=time, notes=notes, units=units,
+                      length_units=length, periodic=periodic if g is None else g.periodic,
+                      period=period if g is None else g.period)
+
+
+def resample_note(mesh, el, grid, why, data, empty) -> str:
+    counts = ", ".join(f"{n} {k}" for k, n in mesh.counts().items())
+    split = (f" (polyhedra split into {el.n_tets} tetrahedra about face and cell centroids)"
+             if el.n_tets else "")
+    how = ("each node interpolated by the shape functions of the cell containing it"
+           if data == "point" else "each node taking the value of the cell containing it "
+           "(cell data, constant per cell)")
+    n = int(np.prod(grid.shape))
+    return (f"resampled from {mesh.n_cells} cells ({counts}){split} onto a "
+            f"{' x '.join(map(str, grid.shape))} {grid.kind} grid ({why}): {how}; "
+            f"{empty} of {n} nodes lie in no cell (obstacles, outside the mesh): NaN")
+
+
+def _lattice(path, mesh, arrays, data, rtol, notes):
+    """(axes, node arrays) when the points (cell centroids for cell data) form a lattice."""
+    pts = mesh.points if data == "point" else mesh.centroids()
+    found = find_lattice(pts, rtol)
+    if isinstance(found, str):
+        return None
+    axes, ijk = found
+    dev = max(float(np.abs(pts[:, a] - axes[a][ijk[:, a]]).max()) for a in range(3))
+    dims = tuple(c.size for c in axes)
+    nodes = {}
+    for n, a in arrays.items():
+        out = np.empty(dims + a.shape[1:], a.dtype)
+        out[ijk[:, 0], ijk[:, 1], ijk[:, 2]] = a
+        nodes[n] = out
+    what = "nodes" if data == "point" else "cell centroids"
+    notes.insert(0, f"rectilinear lattice rebuilt exactly from {len(pts)} unstructured {what}: "
+                    "each maps to one (i, j, k) and every lattice position is filled exactly "
+                    f"once (largest node offset from its lattice line {dev:.3g})")
+    if data == "cell":
+        notes.append("cell data: each value placed at its cell centroid (mean of the cell's "
+                     "nodes); not averaged to points")
+    return axes, nodes
 
 
 def find_lattice(points, rtol=1e-6):
@@ -157,36 +165,156 @@ def find_lattice(points, rtol=1e-6):
     return axes, ijk
 
 
-def _grid(path, pts, shape, bounds) -> Grid:
-    shape = tuple(int(n) for n in shape)
-    if len(shape) != 3 or min(shape) < 2:
-        raise ReaderError(f"{path}: resampling shape {shape} must be 3 integers >= 2")
-    b = np.stack([pts.min(0), pts.max(0)], axis=1) if bounds is None else np.asarray(bounds, float)
-    if b.shape != (3, 2) or np.any(b[:, 1] <= b[:, 0]):
-        raise ReaderError(
-            f"{path}: resampling bounds {b.tolist()} must be ((x0, x1), (y0, y1), (z0, z1)) "
-            "with x0 < x1 etc."
-        )
-    return Grid.regular(b[:, 0], (b[:, 1] - b[:, 0]) / (np.array(shape) - 1), shape)
+# -- the XML --------------------------------------------------------------------------------
+def read_unstructured(path):
+    """(Mesh, point arrays, cell arrays, time) of a .vtu file; pieces joined."""
+    doc = _Document(path)
+    kind = doc.root.get("type")
+    if kind != "UnstructuredGrid":
+        raise ReaderError(f"{path}: VTK XML type '{kind}' is not UnstructuredGrid")
+    pieces = doc.find(doc.root, kind).findall("Piece")
+    if not pieces:
+        raise ReaderError(f"{path}: no Piece element (truncated or corrupt)")
+    parts = [_piece(doc, p) for p in pieces]
+    base = np.cumsum([0] + [len(p[0]) for p in parts])
+    cbase = np.cumsum([0] + [p[1].size for p in parts])
+    points = np.concatenate([p[0] for p in parts])
+    conn = np.concatenate([p[1] + b for p, b in zip(parts, base)])
+    offsets = np.concatenate([[0]] + [p[2][1:] + cb for p, cb in zip(parts, cbase)])
+    types = np.concatenate([p[3] for p in parts])
+    faces = foff = None
+    if any(p[4] is not None for p in parts):
+        fl, fo, at = [], [], 0
+        for p, b in zip(parts, base):
+            f, o = p[4] if p[4] is not None else (np.zeros(0, np.int64),
+                                                  np.full(len(p[3]), -1, np.int64))
+            fl.append(_shift_faces(f, o, b))
+            fo.append(np.where(o >= 0, o + at, -1))
+            at += f.size
+        faces, foff = np.concatenate(fl), np.concatenate(fo)
+    mesh = Mesh(points, conn, offsets, types, faces, foff)
+    point, cell = {}, {}
+    for section, store, size in (("PointData", point, [len(p[0]) for p in parts]),
+                                 ("CellData", cell, [len(p[3]) for p in parts])):
+        names = None
+        chunks: dict[str, list] = {}
+        for piece, n in zip(pieces, size):
+            sec = piece.find(section)
+            els = [] if sec is None else sec.findall("DataArray")
+            here = [e.get("Name") for e in els]
+            if names is None:
+                names = here
+            for el in els:
+                nc = int(el.get("NumberOfComponents", 1))
+                a = doc.array(el, n * nc)
+                chunks.setdefault(el.get("Name"), []).append(a.reshape(n, nc) if nc > 1 else a)
+        for name in names or []:
+            if len(chunks.get(name, [])) == len(pieces):
+                store[name] = np.concatenate(chunks[name])
+    return mesh, point, cell, doc.time_value()
 
 
-def resample(points, arrays: dict, grid: Grid):
-    """Arrays on scattered points -> node arrays on ``grid`` (linear on Delaunay tetrahedra)."""
-    from scipy.interpolate import LinearNDInterpolator
-    from scipy.spatial import Delaunay
+def _piece(doc, piece):
+    """(points, connectivity, offsets from 0, types, (faces, faceoffsets) or None) of a piece."""
+    path = doc.path
+    try:
+        npts = int(piece.get("NumberOfPoints"))
+        ncells = int(piece.get("NumberOfCells"))
+    except (TypeError, ValueError):
+        raise ReaderError(f"{path}: Piece without NumberOfPoints / NumberOfCells") from None
+    pel = doc.find(doc.find(piece, "Points"), "DataArray")
+    points = doc.array(pel, 3 * npts).reshape(npts, 3).astype(np.float64)
+    cells = {el.get("Name"): el for el in doc.find(piece, "Cells").findall("DataArray")}
+    for need in ("connectivity", "offsets", "types"):
+        if need not in cells:
+            raise ReaderError(f"{path}: Cells has no '{need}' array (truncated or corrupt?)")
+    offsets = np.concatenate([[0], doc.array(cells["offsets"], ncells).astype(np.int64)])
+    conn = doc.array(cells["connectivity"], None).astype(np.int64)
+    types = doc.array(cells["types"], ncells).astype(np.int64)
+    if np.any(np.diff(offsets) < 0) or offsets[-1] != conn.size:
+        doc.corrupt("cell offsets do not match the connectivity")
+    if conn.size and (conn.min() < 0 or conn.max() >= npts):
+        doc.corrupt(f"the connectivity names points outside 0..{npts - 1}")
+    faces = None
+    if "faces" in cells and "faceoffsets" in cells:
+        f = doc.array(cells["faces"], None).astype(np.int64)
+        ends = doc.array(cells["faceoffsets"], ncells).astype(np.int64)
+        faces = (f, _starts(ends, types))
+    elif "face_connectivity" in cells:
+        arrays = [doc.array(cells[n], None).astype(np.int64)
+                  for n in ("face_connectivity", "face_offsets", "polyhedron_to_faces",
+                            "polyhedron_offsets")]
+        faces = legacy_faces(*arrays)
+    elif np.any(types == POLYHEDRON):
+        c = int(np.flatnonzero(types == POLYHEDRON)[0])
+        raise ReaderError(f"{path}: cell {c} is a polyhedron but the file has no face arrays")
+    return points, conn, offsets, types, faces
 
-    tri = Delaunay(points)
-    q = grid.node_points().reshape(-1, 3)
-    out = {}
-    for n, a in arrays.items():
-        v = LinearNDInterpolator(tri, a.astype(np.float64), fill_value=np.nan)(q)
-        out[n] = v.reshape(grid.shape + a.shape[1:])
-    outside = (
-        int(np.isnan(next(iter(out.values()))).reshape(q.shape[0], -1).any(1).sum()) if out else 0
-    )
-    note = (
-        f"resampled from {len(points)} unstructured points onto a {grid.kind} grid of shape "
-        f"{grid.shape} by linear interpolation on their Delaunay tetrahedralisation "
-        f"(scipy LinearNDInterpolator); NaN outside their convex hull ({outside} grid nodes)"
-    )
-    return out, note
+
+def _starts(ends, types):
+    """Start of each polyhedron's record in 'faces' from VTK's 'faceoffsets' (the end of each
+    cell's record, -1 for other cells)."""
+    starts = np.full(ends.size, -1, np.int64)
+    poly = np.flatnonzero(ends >= 0)
+    prev = np.concatenate([[0], ends[poly][:-1]])
+    starts[poly] = prev
+    return starts
+
+
+def _shift_faces(faces, starts, base):
+    """Point ids in a legacy faces stream shifted by ``base`` (for joining pieces)."""
+    if base == 0 or faces.size == 0:
+        return faces
+    out = faces.copy()
+    is_id = np.zeros(faces.size, bool)
+    for s in starts[starts >= 0]:  # (pieces are rare: a plain walk is enough)
+        pos = s + 1
+        for _ in range(faces[s]):
+            k = faces[pos]
+            is_id[pos + 1 : pos + 1 + k] = True
+            pos += 1 + k
+    out[is_id] += base
+    return out
+
+
+# -- .vtm --------------------------------------------------------------------------------------
+def read_vtm(path, vector="U", block="internal", **opts):
+    """The dataset ``block`` of a VTK multiblock file, read as its own file."""
+    return read_vtu(vtm_block(path, block), vector=vector, **opts)
+
+
+def vtm_block(path, block="internal") -> Path:
+    """The .vtu file of the dataset ``block`` of a VTK multiblock file."""
+    path = existing(path)
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as e:
+        raise ReaderError(f"{path}: VTK file is truncated or corrupt (XML parse error: {e})")
+    sets = []
+
+    def walk(el, prefix):
+        for child in el:
+            name = child.get("name")
+            if child.tag == "DataSet" and child.get("file"):
+                sets.append(("/".join([*prefix, name or Path(child.get("file")).stem]),
+                             child.get("file")))
+            elif child.tag in ("Block", "vtkMultiBlockDataSet", "Piece"):
+                walk(child, [*prefix, name] if name else prefix)
+
+    walk(root, [])
+    if not sets:
+        raise ReaderError(f"{path}: the multiblock file lists no datasets")
+    hits = [s for s in sets if s[0] == block] or [s for s in sets if s[0].split("/")[-1] == block]
+    if len(hits) != 1:
+        raise ReaderError(f"{path}: {'no' if not hits else 'more than one'} block {block!r}; "
+                          f"blocks: {', '.join(n for n, _ in sets)}")
+    name, file = hits[0]
+    target = path.parent / file
+    if target.suffix.lower() != ".vtu":
+        raise ReaderError(f"{path}: block {name!r} is {target.name}, a surface "
+                          f"({target.suffix}), not a volume mesh: only .vtu blocks resample onto "
+                          "a grid (the internal mesh is 'internal')")
+    return target
+
+
+__all__ = ["find_lattice", "read_unstructured", "read_vtm", "read_vtu", "vtm_block"]
