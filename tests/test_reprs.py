@@ -45,6 +45,14 @@ def test_trace_options_show_what_differs_as_keywords():
         "<", "&lt;").replace(">", "&gt;") + "</pre>"
 
 
+def test_an_unregistered_method_says_so():
+    from flowkit.integrate.methods import Method
+
+    heun = Method.from_butcher("heun", [0.0, 1.0], [[0.0, 0.0], [1.0, 0.0]], [0.5, 0.5],
+                               [1.0, 0.0], order=2, err_order=1)
+    assert repr(TraceOptions(method=heun)).startswith("<TraceOptions: method heun (unregistered), rtol")
+
+
 def test_trace_options_keywords_rebuild_them():
     opts = TraceOptions(max_length=2.5, direction="backward", stagnation_rel=1e-3, count=40)
     body = repr(opts).split("\n", 1)[1].rstrip(">")

@@ -149,7 +149,7 @@ class TraceOptions:
         """The method and tolerance, then only the options that differ from their defaults
         (as keywords that rebuild them), a few to a line."""
         m = self.entry
-        head = f"<TraceOptions: method {m.name}" + ("" if is_registered(m) else " (own)")
+        head = f"<TraceOptions: method {m.name}" + ("" if is_registered(m) else " (unregistered)")
         head += f", rtol {_show(self.rtol)}"
         changed = [f"{f.name}={_show(getattr(self, f.name), f.name)}" for f in fields(self)
                    if f.name not in ("method", "rtol") and getattr(self, f.name) != f.default]
