@@ -185,39 +185,43 @@ class VTKTracer:
         return st
 
     def _ends(self, out, n_seeds, length):
-        """(points at arc length ``length`` (NaN where the line is shorter), true arc length
-        at each line's end, vertex count, vertices within ``length`` (all of a short line))
-        from a vtkStreamTracer output."""
-        from vtk.util.numpy_support import vtk_to_numpy
+        return vtk_ends(out, self.vector_name, n_seeds, length)
 
-        P = vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64)
-        lines = out.GetLines()
-        off = vtk_to_numpy(lines.GetOffsetsArray()).astype(np.int64)
-        conn = vtk_to_numpy(lines.GetConnectivityArray()).astype(np.int64)
-        T = vtk_to_numpy(out.GetPointData().GetArray("IntegrationTime"))[conn]
-        U = vtk_to_numpy(out.GetPointData().GetArray(self.vector_name))[conn]
-        seed_ids = vtk_to_numpy(out.GetCellData().GetArray("SeedIds"))
-        P = P[conn]
-        speed = np.linalg.norm(U, axis=1)
-        ends = np.full((n_seeds, 3), np.nan)
-        s_end = np.full(n_seeds, np.nan)
-        within = 0
-        for c, sid in enumerate(seed_ids):
-            a, b = off[c], off[c + 1]
-            ds = np.diff(T[a:b]) * speed[a:b - 1]
-            s = np.concatenate([[0.0], np.cumsum(ds)])
-            s_end[sid] = s[-1]
-            if s[-1] < length * (1 - 1e-9):
-                within += b - a
-                continue
-            k = min(int(np.searchsorted(s, length, side="right")) - 1, b - a - 2)
-            within += k + 2
-            h = s[k + 1] - s[k]
-            th = min((length - s[k]) / h, 1.0)
-            m0, m1 = U[a + k] / speed[a + k], U[a + k + 1] / speed[a + k + 1]
-            ends[sid] = ((2 * th**3 - 3 * th**2 + 1) * P[a + k] + (th**3 - 2 * th**2 + th) * h * m0
-                         + (-2 * th**3 + 3 * th**2) * P[a + k + 1] + (th**3 - th**2) * h * m1)
-        return ends, s_end, int(P.shape[0]), within
+
+def vtk_ends(out, vector_name: str, n_seeds: int, length: float):
+    """(points at arc length ``length`` (NaN where the line is shorter), true arc length
+    at each line's end, vertex count, vertices within ``length`` (all of a short line))
+    from a vtkStreamTracer output (PyVista's ``streamlines`` too): see ``VTKTracer.run``."""
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    P = vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64)
+    lines = out.GetLines()
+    off = vtk_to_numpy(lines.GetOffsetsArray()).astype(np.int64)
+    conn = vtk_to_numpy(lines.GetConnectivityArray()).astype(np.int64)
+    T = vtk_to_numpy(out.GetPointData().GetArray("IntegrationTime"))[conn]
+    U = vtk_to_numpy(out.GetPointData().GetArray(vector_name))[conn]
+    seed_ids = vtk_to_numpy(out.GetCellData().GetArray("SeedIds"))
+    P = P[conn]
+    speed = np.linalg.norm(U, axis=1)
+    ends = np.full((n_seeds, 3), np.nan)
+    s_end = np.full(n_seeds, np.nan)
+    within = 0
+    for c, sid in enumerate(seed_ids):
+        a, b = off[c], off[c + 1]
+        ds = np.diff(T[a:b]) * speed[a:b - 1]
+        s = np.concatenate([[0.0], np.cumsum(ds)])
+        s_end[sid] = s[-1]
+        if s[-1] < length * (1 - 1e-9):
+            within += b - a
+            continue
+        k = min(int(np.searchsorted(s, length, side="right")) - 1, b - a - 2)
+        within += k + 2
+        h = s[k + 1] - s[k]
+        th = min((length - s[k]) / h, 1.0)
+        m0, m1 = U[a + k] / speed[a + k], U[a + k + 1] / speed[a + k + 1]
+        ends[sid] = ((2 * th**3 - 3 * th**2 + 1) * P[a + k] + (th**3 - 2 * th**2 + th) * h * m0
+                     + (-2 * th**3 + 3 * th**2) * P[a + k + 1] + (th**3 - th**2) * h * m1)
+    return ends, s_end, int(P.shape[0]), within
 
 
 # -- streamtracer -------------------------------------------------------------------------

@@ -56,14 +56,17 @@ class Lines:
 
     @classmethod
     def empty(cls) -> Lines:
+        """No lines: no vertices, no attributes."""
         return cls(np.zeros((0, 3)), np.zeros(1, np.int64))
 
     # -- shape ---------------------------------------------------------------------------
     def __len__(self) -> int:
+        """The number of lines."""
         return self.offsets.size - 1
 
     @property
     def n_points(self) -> int:
+        """The number of vertices of all lines together."""
         return self.points.shape[0]
 
     @property
@@ -91,17 +94,16 @@ class Lines:
 
     # -- access --------------------------------------------------------------------------
     def __getitem__(self, key) -> Lines:
-        """``lines[i]``, ``lines[a:b]``, ``lines[mask]`` or ``lines[indices]`` -> Lines."""
+        """The lines selected, as Lines: ``lines[i]`` (one line: its ``points``, every
+        per-vertex attribute in ``point_data`` and its per-line values in ``line_data``, each
+        an array of one row), ``lines[a:b]``, ``lines[mask]`` (a boolean per line) or
+        ``lines[indices]`` (negative ones count from the end), in the order given."""
         if isinstance(key, (int, np.integer)):
-            i = int(key) + (len(self) if key < 0 else 0)
-            if not 0 <= i < len(self):
-                raise IndexError(f"line {key} out of range for {len(self)} lines")
-            idx = np.array([i])
+            idx = np.array([self._line(key)])
         elif isinstance(key, slice):
             idx = np.arange(len(self))[key]
         else:
-            idx = np.asarray(key)
-            idx = np.flatnonzero(idx) if idx.dtype == bool else idx.astype(np.int64)
+            idx = self._indices(key)
         starts, stops = self.offsets[idx], self.offsets[idx + 1]
         counts = stops - starts
         rows = _ranges(starts, counts)
@@ -113,7 +115,28 @@ class Lines:
             dict(self.attrs),
         )
 
+    def _indices(self, key) -> np.ndarray:
+        """Line numbers from a boolean mask or integer indices; anything else is refused with
+        what is expected."""
+        idx = np.asarray(key)
+        if idx.dtype == bool:
+            if idx.shape != (len(self),):
+                raise IndexError(f"a line mask has one boolean per line ({len(self)}), got "
+                                 f"shape {idx.shape}")
+            return np.flatnonzero(idx)
+        if idx.ndim != 1 or not (np.issubdtype(idx.dtype, np.integer) or idx.size == 0):
+            hint = (f"; the per-vertex attribute is lines.point_data[{key!r}]"
+                    if isinstance(key, str) else "")
+            raise TypeError(f"lines[...] takes a line number, a slice, a boolean per line or "
+                            f"integer line numbers, got {key!r}{hint}")
+        idx = idx.astype(np.int64)
+        bad = (idx < -len(self)) | (idx >= len(self))
+        if bad.any():
+            raise IndexError(f"line {idx[bad][0]} out of range for {len(self)} lines")
+        return np.where(idx < 0, idx + len(self), idx)
+
     def __iter__(self) -> Iterator[Lines]:
+        """Each line in turn, as ``lines[i]``."""
         for i in range(len(self)):
             yield self[i]
 
@@ -163,7 +186,7 @@ class Lines:
     # -- what it holds, in a few lines --------------------------------------------------
     def __repr__(self) -> str:
         n = self.n_vertices
-        out = [f"<Lines: {len(self)} lines, {self.n_points} vertices ({self.points.dtype})"
+        out = [f"<Lines: {len(self)} line{'s' * (len(self) != 1)}, {self.n_points} vertices ({self.points.dtype})"
                + (f", {n.min()}-{n.max()} per line" if len(self) else "")]
         if self.n_points:
             out.append("  bounds: " + "  ".join(f"{a} [{lo:.6g}, {hi:.6g}]"
@@ -246,13 +269,18 @@ class Lines:
 
     @staticmethod
     def concatenate(parts: list[Lines]) -> Lines:
+        """The lines of ``parts`` one after the other (None parts skipped); every part must
+        carry the same attributes.  ``attrs`` are the first part's."""
         parts = [p for p in parts if p is not None]
         if not parts:
             return Lines.empty()
         keys_p, keys_l = set(parts[0].point_data), set(parts[0].line_data)
         for p in parts[1:]:
             if set(p.point_data) != keys_p or set(p.line_data) != keys_l:
-                raise ValueError("cannot concatenate Lines with different attribute sets")
+                raise ValueError(
+                    "cannot concatenate Lines with different attributes: the first part has "
+                    f"{_names(keys_p)} per vertex and {_names(keys_l)} per line, another "
+                    f"{_names(p.point_data)} and {_names(p.line_data)}")
         sizes = np.array([0] + [p.n_points for p in parts])
         offsets = np.concatenate([[0]] + [p.offsets[1:] + s for p, s in zip(parts, np.cumsum(sizes)[:-1])])
         return Lines(
@@ -280,6 +308,10 @@ class Lines:
         if p.size == 0:
             return np.zeros((3, 2))
         return np.stack([p.min(axis=0), p.max(axis=0)], axis=1)
+
+
+def _names(keys) -> str:
+    return "[" + ", ".join(sorted(keys)) + "]"
 
 
 def _reason_codes(reason) -> list[int]:

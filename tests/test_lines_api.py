@@ -77,6 +77,45 @@ def test_wrong_arguments_say_what_was_expected():
         toy.line_points(3)
 
 
+def test_one_line_holds_its_points_and_all_its_data(lines):
+    i = 5
+    one = lines[i]
+    a, b = lines.offsets[i], lines.offsets[i + 1]
+    np.testing.assert_array_equal(one.points, lines.points[a:b])
+    assert set(one.point_data) == set(lines.point_data) == {"speed", "T", "velocity"}
+    for k, v in lines.point_data.items():
+        np.testing.assert_array_equal(one.point_data[k], v[a:b])
+        np.testing.assert_array_equal(one.point_data[k], lines.line_attribute(k, i))
+    assert set(one.line_data) == set(lines.line_data)
+    for k, v in lines.line_data.items():
+        np.testing.assert_array_equal(one.line_data[k], v[i:i + 1])
+    assert repr(one).startswith("<Lines: 1 line, ")
+    # iteration: every line once, in order
+    assert [x.n_points for x in lines] == list(lines.n_vertices)
+    assert lines[-1].equals(lines[len(lines) - 1])
+
+
+def test_selections_take_what_they_say_or_refuse():
+    toy = _toy()
+    assert toy[[2, 0]].line_data["reason"].tolist() == [7, 1]  # in the order given
+    assert toy[[-1]].equals(toy[2]) and toy[np.array([], int)].n_points == 0
+    with pytest.raises(IndexError, match="line -4 out of range for 3 lines"):
+        toy[[0, -4]]
+    with pytest.raises(IndexError, match=r"one boolean per line \(3\), got shape \(2,\)"):
+        toy[np.array([True, False])]
+    with pytest.raises(TypeError, match=r"the per-vertex attribute is lines.point_data\['s'\]"):
+        toy["s"]
+    with pytest.raises(TypeError, match="takes a line number, a slice, a boolean per line or "
+                                        "integer line numbers, got 1.5"):
+        toy[1.5]
+    with pytest.raises(TypeError, match=r"got \[0.0, 1.0\]"):
+        toy[[0.0, 1.0]]
+    with pytest.raises(ValueError, match=r"first part has \[s, v\] per vertex and \[reason\] "
+                                         r"per line, another \[s\] and \[reason\]"):
+        Lines.concatenate([toy, Lines(toy.points, toy.offsets, {"s": toy.point_data["s"]},
+                                      toy.line_data)])
+
+
 def test_to_pandas_is_one_row_per_vertex(lines):
     pytest.importorskip("pandas")
     df = lines.to_pandas()

@@ -60,12 +60,27 @@ def test_what_cannot_be_sampled_is_refused_with_the_reason(room, bare):
         sample(bare, room, ["time"])
     with pytest.raises(ValueError, match="arc length accumulates along the trace"):
         sample(bare, room, "arc_length")
-    with pytest.raises(ValueError, match="'distance_to_seed': these lines do not carry"):
+    with pytest.raises(ValueError, match=r"'distance_to_seed': these lines do not carry their "
+                                         r"seeds \(line data 'seed'\); pass the points"):
         sample(bare, room, ["distance_to_seed"])
     with pytest.raises(KeyError, match="unknown attribute 'rho'"):
         sample(bare, room, ["rho"])
     with pytest.raises(ValueError, match="rename names p, which are not sampled"):
         sample(bare, room, ["T"], rename={"p": "q"})
+
+
+def test_distance_to_seed_from_the_seeds_the_lines_were_traced_from(room, bare):
+    pts = seeds.line((1, 1, 1), (9, 4, 9), 20)
+    traced = trace(room, pts, max_length=8.0, direction="both", attributes=["distance_to_seed"])
+    got = sample(bare, room, ["distance_to_seed"], seeds=pts)
+    np.testing.assert_array_equal(got.point_data["distance_to_seed"],
+                                  traced.point_data["distance_to_seed"])
+    with pytest.raises(ValueError, match="seed_id runs to 19, but seeds= has 5 points"):
+        sample(bare, room, ["distance_to_seed"], seeds=pts[:5])
+    with pytest.raises(ValueError, match=r"the \(n, 3\) points the lines were traced from"):
+        sample(bare, room, ["distance_to_seed"], seeds=pts[:, :2])
+    with pytest.raises(ValueError, match="seeds are for 'distance_to_seed'"):
+        sample(bare, room, ["T"], seeds=pts)
 
 
 def test_cli_writes_the_lines_with_the_new_attributes(room, bare, tmp_path, capsys):

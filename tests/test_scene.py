@@ -265,6 +265,35 @@ def test_a_new_attribute_is_added_on_cached_vertices_or_retraced(tmp_path, field
     assert res.snapshots[0].action == "retrace" and spy["trace"][-1] == ("time", "T")
 
 
+def test_one_more_attribute_is_sampled_onto_the_cached_entry(tmp_path, field_file, spy):
+    """A style that reads one attribute more than the cached lines hold: the entry's vertices
+    get it (flowkit.sample, which says how many came out NaN), no trace, the same entry."""
+    from flowkit.integrate.sample import nan_counts
+
+    path = write_scene(tmp_path, SPEED, outputs='[outputs]\nlines = "l.h5"\n')
+    run(path)
+    entries = sorted(_cache(path).dir.glob("*.json"))
+    wider = SPEED.replace("width = 2", 'width = { attribute = "distance_to_seed", range = '
+                          "[0, 3], min = 1, max = 3 }")
+    write_scene(tmp_path, wider, outputs='[outputs]\nlines = "l.h5"\n')
+    res = run(path)
+    assert res.snapshots[0].action == "extend" and len(spy["trace"]) == 1
+    assert sorted(_cache(path).dir.glob("*.json")) == entries  # the entry itself, extended
+    cache = _cache(path)
+    entry = cache.get(entries[0].stem)
+    assert set(entry.point_attributes) == {"speed", "distance_to_seed"}
+    got = read_lines(tmp_path / "l.h5")
+    assert nan_counts(got) == {"distance_to_seed": 0}
+    # the values a trace that asked for both gives, from the seeds (the lines hold only seed_id)
+    assert "seed" not in got.line_data
+    plan = make_plan(load_scene(path))
+    fresh = trace_mod.trace(swirl(), plan.seed_points(swirl()), plan.options)
+    for name in ("speed", "distance_to_seed"):
+        np.testing.assert_array_equal(cache.read(entry).point_data[name],
+                                      fresh.point_data[name], err_msg=name)
+    assert run(path).snapshots[0].action == "hit" and len(spy["trace"]) == 2  # (fresh above)
+
+
 def _cache(path):
     from flowkit.scene import LinesCache
 

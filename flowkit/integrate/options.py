@@ -145,7 +145,30 @@ class TraceOptions:
         if not (0 < self.stagnation_rel < 1):
             raise OptionsError(f"option stagnation_rel must be in (0, 1), got {self.stagnation_rel!r}")
 
+    def __repr__(self) -> str:
+        """The method and tolerance, then only the options that differ from their defaults
+        (as keywords that rebuild them), a few to a line."""
+        m = self.entry
+        head = f"<TraceOptions: method {m.name}" + ("" if is_registered(m) else " (unregistered)")
+        head += f", rtol {_show(self.rtol)}"
+        changed = [f"{f.name}={_show(getattr(self, f.name), f.name)}" for f in fields(self)
+                   if f.name not in ("method", "rtol") and getattr(self, f.name) != f.default]
+        if not changed:
+            return head + "; the other options at their defaults>"
+        rows = [""]
+        for item in changed:
+            if rows[-1] and len(rows[-1]) + len(item) > 84:
+                rows.append("")
+            rows[-1] += (", " if rows[-1] else "") + item
+        return head + "".join(f"\n  {r}" for r in rows) + ">"
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<pre>{html.escape(repr(self))}</pre>"
+
     def replace(self, **kw) -> TraceOptions:
+        """These options with some changed (validated again); an unknown name is refused."""
         unknown = set(kw) - {f.name for f in fields(self)}
         if unknown:
             raise OptionsError(f"unknown trace option(s): {', '.join(sorted(unknown))}")
@@ -158,6 +181,7 @@ class TraceOptions:
 
     @property
     def method_name(self) -> str:
+        """The method's name (a registered one's canonical name, not an alias)."""
         return self.entry.name
 
     @property
@@ -173,6 +197,22 @@ class TraceOptions:
 
 
 TraceOptions.__doc__ = TraceOptions.__doc__.replace("{methods}", catalogue(" " * 17))
+
+
+def _show(v, name: str = "") -> str:
+    """An option's value as the keyword that sets it takes it: numbers as Python writes them
+    (numpy's own scalars too), the memory budget as text ("4.29 GB", which option memory takes)."""
+    if name == "memory" and v is not None:
+        from ..fields.stored import fmt_bytes
+
+        return repr(fmt_bytes(v))
+    if isinstance(v, tuple):
+        return "(" + ", ".join(_show(x) for x in v) + ("," if len(v) == 1 else "") + ")"
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))
+    if isinstance(v, np.integer):
+        return repr(int(v))
+    return repr(v)
 
 
 def _num(v) -> bool:

@@ -24,13 +24,17 @@ INTEGRATED = {"time": "integration time is a property of the trace, not of the f
                             "each line's, or trace again with it"}
 
 
-def sample(lines: Lines, field: Field, attributes, *, rename: dict | None = None) -> Lines:
+def sample(lines: Lines, field: Field, attributes, *, rename: dict | None = None,
+           seeds=None) -> Lines:
     """``lines`` with the per-vertex ``attributes`` (speed, velocity, vorticity,
-    vorticity_magnitude, distance_to_seed where the lines carry their seeds, or scalar fields of
-    ``field``) sampled from ``field`` at their vertices; ``rename`` maps an attribute to the name
-    it gets (e.g. ``{"T": "T_1200s"}`` for another snapshot's T).  The points and the other
-    attributes are shared, not copied.  ``attrs["sampled"]`` records, per new name, the source
-    and how many of its vertices are NaN (outside the field, or in a NaN cell)."""
+    vorticity_magnitude, distance_to_seed, or scalar fields of ``field``) sampled from ``field``
+    at their vertices; ``rename`` maps an attribute to the name it gets (e.g.
+    ``{"T": "T_1200s"}`` for another snapshot's T).  distance_to_seed needs each line's seed:
+    the lines' own (line data ``seed``, as evenly spaced seeding keeps them) or ``seeds``, the
+    (n, 3) points the lines were traced from (line data ``seed_id`` indexes them).  The points
+    and the other attributes are shared, not copied.  ``attrs["sampled"]`` records, per new
+    name, the source and how many of its vertices are NaN (outside the field, or in a NaN
+    cell)."""
     names = [attributes] if isinstance(attributes, str) else list(attributes)
     rename = dict(rename or {})
     for n in names:
@@ -41,14 +45,13 @@ def sample(lines: Lines, field: Field, attributes, *, rename: dict | None = None
         raise ValueError(f"rename names {', '.join(sorted(unknown))}, which are not sampled "
                          f"(sampled: {', '.join(names)})")
     _attributes.check(field, names)
-    seeds = None
+    seed_of = None
     if "distance_to_seed" in names:
-        if "seed" not in lines.line_data:
-            raise ValueError("cannot sample 'distance_to_seed': these lines do not carry their "
-                             "seeds (line data 'seed'); trace with it instead")
-        seeds = np.repeat(lines.line_data["seed"], lines.n_vertices, axis=0)
+        seed_of = _seed_per_vertex(lines, seeds)
+    elif seeds is not None:
+        raise ValueError("seeds are for 'distance_to_seed', which is not sampled")
     points = np.ascontiguousarray(lines.points, dtype=np.float64)
-    new = _attributes.compute(field, names, points, None, None, seeds)
+    new = _attributes.compute(field, names, points, None, None, seed_of)
     out_names = {n: rename.get(n, n) for n in names}
     point_data, outside = dict(lines.point_data), {}
     for n, v in new.items():
@@ -63,6 +66,28 @@ def sample(lines: Lines, field: Field, attributes, *, rename: dict | None = None
     previous = json.loads(attrs["sampled"]) if isinstance(attrs.get("sampled"), str) else {}
     attrs["sampled"] = json.dumps({**previous, **outside})
     return Lines(lines.points, lines.offsets, point_data, lines.line_data, attrs)
+
+
+def _seed_per_vertex(lines: Lines, seeds) -> np.ndarray:
+    """The seed of every vertex's line, (N, 3): from the lines' own seeds, else from ``seeds``
+    indexed by line data ``seed_id``."""
+    if "seed" in lines.line_data:
+        return np.repeat(lines.line_data["seed"], lines.n_vertices, axis=0)
+    if seeds is None:
+        raise ValueError("cannot sample 'distance_to_seed': these lines do not carry their "
+                         "seeds (line data 'seed'); pass the points they were traced from "
+                         "(seeds=), or trace with it")
+    seeds = np.asarray(seeds, dtype=np.float64)
+    ids = lines.line_data.get("seed_id")
+    if seeds.ndim != 2 or seeds.shape[1] != 3:
+        raise ValueError(f"seeds must be the (n, 3) points the lines were traced from, got "
+                         f"shape {seeds.shape}")
+    if ids is None:
+        raise ValueError("these lines have no line data 'seed_id' to find their seeds in seeds=")
+    if len(ids) and not (0 <= ids.min() and ids.max() < len(seeds)):
+        raise ValueError(f"seed_id runs to {ids.max()}, but seeds= has {len(seeds)} points: "
+                         "not the seeds these lines were traced from")
+    return seeds[np.repeat(ids, lines.n_vertices)]
 
 
 def nan_counts(lines: Lines) -> dict[str, int]:

@@ -196,6 +196,41 @@ class Style:
     def __post_init__(self):
         validate(self)
 
+    def __repr__(self) -> str:
+        """A few lines: each line style's bands (colour and width, as numbers or mapped from
+        an attribute over a range), the transfer function, the settings not at their defaults."""
+        drawn = self.used_styles()
+        head = (f"<Style: {len(self.styles)} line style{'s' * (len(self.styles) != 1)}, widths "
+                f"in {self.units}, reads {', '.join(self.attributes()) or 'no attribute'}")
+        out = [head]
+        for name, ls in self.styles.items():
+            out.append(f"  {name}:" + ("" if name in drawn else " (drawn by no range)"))
+            out += [f"    band {i}: {_show_band(b)}" for i, b in enumerate(ls.bands)]
+        if self.transfer is not None:
+            tf = self.transfer
+            out.append(f"  transfer on {tf.attribute}: " + ", ".join(
+                f"[{_g(r.range[0])}, {_g(r.range[1])}) {r.style or 'discarded'}"
+                for r in tf.ranges) + (f", blend {_g(tf.blend)}" if tf.blend else ""))
+        bg = "transparent" if self.background is None else _show_color(self.background)
+        rest = [f"background {bg}", f"antialias {self.antialias}"
+                + (f" x{self.samples}" if self.antialias == "msaa" else "")]
+        rest += [f"{k} {_g(getattr(self, k))}" for k, d in (("scale", 1.0), ("supersample", 1),
+                                                            ("phase", 0.0))
+                 if getattr(self, k) != d]
+        for key in ("camera", "legend", "annotations"):
+            val = getattr(self, key)
+            changed = {f.name: getattr(val, f.name) for f in dataclasses.fields(val)
+                       if getattr(val, f.name) != f.default}
+            if changed:
+                rest.append(f"{key} " + " ".join(f"{k}={v!r}" for k, v in changed.items()))
+        out.append("  " + ", ".join(rest))
+        return "\n".join(out) + ">"
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<pre>{html.escape(repr(self))}</pre>"
+
     @property
     def line_style(self) -> LineStyle:
         """The style drawn when no transfer function chooses (the first one)."""
@@ -237,6 +272,43 @@ class Style:
                     if a is not None and a not in names:
                         names.append(a)
         return names
+
+
+# -- repr ---------------------------------------------------------------------------------------
+def _g(v) -> str:
+    """A number as %g, a relative length ("2px", "1/50z") as written."""
+    return v if isinstance(v, str) else f"{v:g}"
+
+
+def _show_range(r: Range) -> str:
+    if r is None:
+        return "over the data's range"
+    if isinstance(r, str):
+        return f"over the data's percentiles {r}"
+    return f"over [{_g(r[0])}, {_g(r[1])}]"
+
+
+def _show_color(c) -> str:
+    if isinstance(c, ColorMap):
+        return f"{c.cmap} of {c.attribute} {_show_range(c.range)}"
+    hexa = _color_out(c)
+    return hexa if isinstance(hexa, str) else "rgba(" + ", ".join(f"{v:.3g}" for v in c) + ")"
+
+
+def _show_band(b: Band) -> str:
+    w = b.width
+    out = [f"colour {_show_color(b.color)}",
+           f"width {_g(w.min)}..{_g(w.max)} from {w.attribute} {_show_range(w.range)}"
+           if isinstance(w, WidthMap) else f"width {_g(w)}"]
+    if b.depth_offset != 0:
+        out.append(f"set back {_g(b.depth_offset)}")
+    if b.shape is not None:
+        sh = b.shape
+        out.append(f"shape {sh.name} every {_g(sh.length)} of {sh.attribute}")
+    if b.pattern is not None:
+        pt = b.pattern
+        out.append(f"pattern {_show_color(pt.color)} every {_g(pt.length)} of {pt.attribute}")
+    return ", ".join(out)
 
 
 # -- validation (shared by Python construction and file loading) --------------------------------

@@ -6,9 +6,9 @@ version and the source of the packages that make lines (``code_digest``: a check
 releases, or a fix, keeps its version but not its lines). The attribute set is not in the key:
 an entry records which attributes it holds, so asking for another one can be answered without
 tracing again when the attribute is a function of the vertices only (speed, velocity,
-vorticity*, scalar fields, distance_to_seed: the same ``attributes.compute`` the integrator
-calls, on the very vertices it produced, stored in float64). ``time`` and ``arc_length`` come
-from the integrator itself: asking for them re-traces.
+vorticity*, scalar fields, distance_to_seed): ``flowkit.sample`` adds it, with the same
+``attributes.compute`` the integrator calls, on the very vertices it produced, stored in
+float64. ``time`` and ``arc_length`` come from the integrator itself: asking for them re-traces.
 
 Layout: ``DIR/<key>.h5`` (a lines file, float64 positions, lzf) and ``DIR/<key>.json`` (the inputs and
 the attribute names), both written atomically; the JSON is written last, so an entry exists only

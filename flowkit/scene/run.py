@@ -19,10 +19,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
-from ..integrate import attributes as _attributes
 from ..integrate import trace as tracing
+from ..integrate.sample import sample
 from ..lines import Lines
 from ..seeding import needs_field, trace_spec
 from ..seeding.prune import prune
@@ -213,7 +211,9 @@ def _run_snapshot(plan: Plan, snap: Snapshot, cache: LinesCache | None, out: Pat
                 f"{len(seeds)} seeds" if seeds is not None else "evenly spaced seeding")
         if res.action == "extend":
             with _Stage(res, "attributes", report) as st:
-                lines = _extend(cache.read(entry), fld, seeds, missing)
+                # the attributes a trace would compute, on the very vertices it produced
+                lines = sample(cache.read(entry), fld, missing,
+                               seeds=seeds if "distance_to_seed" in missing else None)
                 entry = cache.store(key, lines, inputs)
                 st.msg = f"{', '.join(missing)} computed on {lines.n_points} cached vertices"
         else:
@@ -269,19 +269,6 @@ def _only(lines: Lines, names) -> Lines:
     """The lines with exactly the point attributes ``names`` (all per-line data kept)."""
     pd = {a: lines.point_data[a] for a in names}
     return Lines(lines.points, lines.offsets, pd, lines.line_data, lines.attrs)
-
-
-def _extend(lines: Lines, fld, seeds: np.ndarray | None, missing) -> Lines:
-    """Add attributes that depend only on the vertices, as the integrator computes them
-    (evenly spaced lines carry their seeds in line_data ``seed``)."""
-    if "seed" in lines.line_data:
-        seed_of = np.repeat(lines.line_data["seed"], lines.lengths, axis=0)
-    else:
-        seed_of = seeds[np.repeat(lines.line_data["seed_id"], lines.lengths)]
-    new = _attributes.compute(fld, missing, lines.points, None, None, seed_of)
-    pd = {**lines.point_data, **new}
-    return Lines(lines.points, lines.offsets, pd, lines.line_data,
-                 {**lines.attrs, **_attributes.metadata(fld, pd)})
 
 
 def _out(out: Path, rel: str) -> Path:
