@@ -20,6 +20,8 @@ HELPERS = {
         ("flowkit.fields.interp", "locate_axis", (F1, F, F, F,)),
         ("flowkit.integrate.kernel", "_width", (F1, F, I,)),
         ("flowkit.integrate.kernel", "_locate_cell", (F1, F, F, F,)),
+        ("flowkit.integrate.kernel", "_axis_bricks", (I, I, I,)),
+        ("flowkit.integrate.kernel", "_slot", (I1, I, I, I,)),
         ("flowkit.integrate.kernel", "_brick", (I1, I, I, I,)),
         ("flowkit.integrate.kernel", "_gather", (F4, I1, I1, F2,)),
         ("flowkit.integrate.kernel", "_relocate", (F1, F1, F1, F1, F1, F4, I1, F, F, F, I1, F1,

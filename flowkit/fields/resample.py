@@ -128,8 +128,8 @@ def locate(el: Elements, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
 
 
 class Resampled(Source):
-    """One mesh array at the located grid nodes, computed a slab of x planes at a time when the
-    Field first reads it (so ``flowkit info`` and a trace that needs only the vector pay for
+    """One mesh array at the located grid nodes, computed a box (a slab of x planes) at a time
+    when the Field first reads it (so ``flowkit info`` and a trace that needs only the vector pay for
     nothing else).  Point data (n_mesh_points[, 3]) is interpolated by each node's element's
     shape functions; cell data (n_cells[, 3]) is each node's cell's value.  NaN in no cell."""
 
@@ -137,18 +137,18 @@ class Resampled(Source):
         self.el, self.owner, self.rst, self.data = el, owner, rst, data
         self.values, self.extended = np.asarray(values), data == "cell"
 
-    def fill(self, out, i0, i1):
+    def fill_box(self, out, box):
         if not self.extended:  # (the centroids' values, once, when first read)
             self.values, self.extended = self.el.extend(self.values), True
-        owner = self.owner[i0:i1]
+        owner = np.ascontiguousarray(self.owner[box])
         if self.data == "cell":
             v = self.values[self.el.cell[np.maximum(owner, 0)]]
             v[owner < 0] = np.nan
         else:
             pv = np.ascontiguousarray(self.values.reshape(self.values.shape[0], -1))
             v = np.empty(owner.shape + (pv.shape[1],))
-            run_ranges(_interpolate, owner.shape[0], owner, self.rst[i0:i1], self.el.conn,
-                       self.el.kind, pv, v)
+            run_ranges(_interpolate, owner.shape[0], owner, np.ascontiguousarray(self.rst[box]),
+                       self.el.conn, self.el.kind, pv, v)
         out[...] = v.reshape(out.shape)
 
 

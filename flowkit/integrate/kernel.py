@@ -179,10 +179,9 @@ def _locate_cell(c, period, inv, x):
 
 
 @inline
-def _axis_bricks(bk, a, i):
-    """Along axis a of a bricked field: (brick, index in it) of node i and of node i + 1 (node 0
-    after the last on a wrapped axis)."""
-    size, n = bk[B_SIZE + a], bk[B_NODES + a]
+def _axis_bricks(size, n, i):
+    """Along an axis of n nodes in bricks of ``size``: (brick, index in it) of node i and of
+    node i + 1 (node 0 after the last on a wrapped axis)."""
     b0 = i // size
     l0 = i - b0 * size
     if l0 + 1 < size and i + 1 < n:
@@ -201,9 +200,9 @@ def _slot(bk, bx, by, bz):
 def _brick(bk, i, j, k):
     """A brick holding a corner of cell (i, j, k) of a bricked field that is not resident (the
     first found), else -1."""
-    bx0, _, bx1, _ = _axis_bricks(bk, 0, i)
-    by0, _, by1, _ = _axis_bricks(bk, 1, j)
-    bz0, _, bz1, _ = _axis_bricks(bk, 2, k)
+    bx0, _, bx1, _ = _axis_bricks(bk[B_SIZE], bk[B_NODES], i)
+    by0, _, by1, _ = _axis_bricks(bk[B_SIZE + 1], bk[B_NODES + 1], j)
+    bz0, _, bz1, _ = _axis_bricks(bk[B_SIZE + 2], bk[B_NODES + 2], k)
     for d in range(8):
         bx = bx1 if d & 1 else bx0
         by = by1 if d & 2 else by0
@@ -263,9 +262,9 @@ def _gather(vec, bk, ci, coef):
                 for c in range(3):
                     coef[m, c] = np.nan
             return False
-        bx0, l0, bx1, l1 = _axis_bricks(bk, 0, i)
-        by0, j0, by1, j1 = _axis_bricks(bk, 1, j)
-        bz0, k0, bz1, k1 = _axis_bricks(bk, 2, k)
+        bx0, l0, bx1, l1 = _axis_bricks(bk[B_SIZE], bk[B_NODES], i)
+        by0, j0, by1, j1 = _axis_bricks(bk[B_SIZE + 1], bk[B_NODES + 1], j)
+        bz0, k0, bz1, k1 = _axis_bricks(bk[B_SIZE + 2], bk[B_NODES + 2], k)
         size = bk[B_SIZE]
         r000 = _slot(bk, bx0, by0, bz0) * size + l0
         r100 = _slot(bk, bx1, by0, bz0) * size + l1
