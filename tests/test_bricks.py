@@ -6,6 +6,7 @@ each brick once when they fit; clear errors where a budget cannot hold a trace."
 import h5py
 import numpy as np
 import pytest
+from test_stored_fields import _same  # (lines equal bit for bit, every array)
 
 from flowkit import trace
 from flowkit.cli import main
@@ -40,16 +41,6 @@ def _abc_file(path, n=24, chunk=8, periodic=False, hole=None):
             del h[name]
             h.create_dataset(name, data=a, chunks=shape)
     return path
-
-
-def _same(a, b):
-    np.testing.assert_array_equal(a.offsets, b.offsets)
-    np.testing.assert_array_equal(a.points, b.points)
-    for k in a.line_data:
-        np.testing.assert_array_equal(a.line_data[k], b.line_data[k], err_msg=k)
-    assert set(a.point_data) == set(b.point_data)
-    for k in a.point_data:
-        np.testing.assert_array_equal(a.point_data[k], b.point_data[k], err_msg=k)
 
 
 def _budgeted(path, seeds, budget="120kB", **kw):

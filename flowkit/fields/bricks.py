@@ -141,10 +141,9 @@ class BrickPool:
 def read_whole(field, scalar: str | None = None) -> bool:
     """Whether a sampler reads ``field``'s vector (or ``scalar``) whole: it is in memory, or its
     file's array is small; else ``by_bricks`` reads only near the points."""
-    arrays = field.scalars if scalar is not None else None
     if scalar is None:
         return field.vector_in_memory() or field.stored_vector().nbytes <= WHOLE_BYTES
-    return arrays.in_memory(scalar) or arrays.meta(scalar).nbytes <= WHOLE_BYTES
+    return field.scalars.in_memory(scalar) or field.scalars.meta(scalar).nbytes <= WHOLE_BYTES
 
 
 def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
@@ -176,7 +175,8 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
     groups = np.split(order, first[1:])
 
     arrays = {None: field.stored_vector()}
-    arrays.update({n: _stored_scalar(field, n) for n in scalars if not field.scalars.in_memory(n)})
+    # (a scalar not in memory is held as its Stored handle)
+    arrays.update({n: field.scalars.meta(n) for n in scalars if not field.scalars.in_memory(n)})
     maps, copies = [], {}
     for name, st in arrays.items():
         nbytes = int(np.prod(st.shape)) * st.dtype.itemsize
@@ -219,13 +219,6 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
                 mm.madvise(mmap.MADV_DONTNEED)  # the pages back, zero again
             todo, filled, held = [], set(), 0
     return out
-
-
-def _stored_scalar(field, name):
-    from .stored import Stored
-
-    meta = field.scalars.meta(name)
-    return meta if isinstance(meta, Stored) else Stored.of(field.scalars[name])
 
 
 def _pages(a: np.ndarray, sx: slice, sy: slice, sz: slice, page: int = 4096) -> int:
