@@ -14,6 +14,7 @@ Every other type (float16, integers) becomes float64.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from abc import ABC, abstractmethod
@@ -110,6 +111,11 @@ class Source(ABC):
         """Write the nodes i0:i1 along x (a slab) into ``out``."""
         self.fill_box(out, (slice(i0, i1), slice(0, out.shape[1]), slice(0, out.shape[2])))
 
+    def held(self):
+        """A context in which a run of reads shares what each would open on its own (a file):
+        opening costs as much as reading a brick."""
+        return contextlib.nullcontext()
+
 
 class InMemory(Source):
     """An array already in memory (or memory-mapped): a box is a copy of its part."""
@@ -133,6 +139,12 @@ class Stacked(Source):
             p.source.fill_box(tmp, box)
             out[..., c] = tmp
 
+    def held(self):
+        stack = contextlib.ExitStack()
+        for p in self.parts:
+            stack.enter_context(p.source.held())
+        return stack
+
 
 class Flipped(Source):
     """Another source with the axes ``axes`` (of x, y, z: 0, 1, 2) in reverse order."""
@@ -146,6 +158,9 @@ class Flipped(Source):
         tmp = np.empty_like(out)
         self.inner.fill_box(tmp, box)
         out[...] = np.flip(tmp, axis=self.axes)
+
+    def held(self):
+        return self.inner.held()
 
 
 class Stored:

@@ -26,6 +26,9 @@ arrays are indexed [k, j, i] (as many C codes write them) instead of the default
 
 from __future__ import annotations
 
+import contextlib
+import threading
+
 import h5py
 import numpy as np
 
@@ -215,11 +218,30 @@ class H5Source(Source):
 
     def __init__(self, path, name: str, order: str = "xyz"):
         self.path, self.name, self.order = str(path), name, order
+        self._local = threading.local()  # the file held open, per thread (``held``)
+
+    def __getstate__(self):
+        return {k: v for k, v in self.__dict__.items() if k != "_local"}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state, _local=threading.local())
+
+    @contextlib.contextmanager
+    def held(self):
+        if getattr(self._local, "file", None) is not None:
+            yield
+            return
+        with h5py.File(self.path, "r") as f:
+            self._local.file = f
+            try:
+                yield
+            finally:
+                self._local.file = None
 
     def fill_box(self, out, box):
         try:
-            with h5py.File(self.path, "r") as f:
-                ds = f[self.name]
+            with self.held():
+                ds = self._local.file[self.name]
                 if self.order == "zyx":
                     a = ds[box[::-1]]
                     out[...] = a.transpose(2, 1, 0, *range(3, a.ndim))
