@@ -151,7 +151,7 @@ def test_a_budget_too_small_for_a_trace_is_a_named_error_and_leaves_no_file(tmp_
                "--memory", "20kB"])
     err = capsys.readouterr().err
     assert rc == 2 and not out.exists() and "Traceback" not in err and err.count("\n") == 1
-    assert str(path) in err and "20 kB" in err and "--memory 61.4 kB" in err
+    assert str(path) in err and "20 kB" in err and "--memory 92.2 kB" in err
     with pytest.raises(FieldMemoryError, match="method ros34pw2"):
         trace(load_field(path), SEEDS, memory="120kB", method="ros34pw2")
     # with a budget that holds a trace, the CLI writes the lines and what it read
@@ -181,3 +181,15 @@ def test_a_brick_is_one_aligned_block_of_nodes():
         np.ravel_multi_index((bx, by, bz), (3, 2, 2)) for bx in (2, 0) for by in (0, 1)
         for bz in (0, 1))
     assert (corners[1] == -1).all()
+
+
+def test_a_budget_far_below_the_field_serves_lines_block_by_block(tmp_path):
+    """Lines everywhere in a field six times the pool: the rounds serve the lines of one block
+    of bricks at a time, so a brick is read a few times, not once per round that wants it."""
+    path = _abc_file(tmp_path / "abc.h5", n=48)  # 216 bricks of 8^3 nodes, 6 kB each
+    seeds = np.random.default_rng(3).random((300, 3)) * L
+    whole, lines, _ = _budgeted(path, seeds, budget="200kB", max_length=10.0)  # 26 slots
+    _same(whole, lines)
+    assert lines.attrs["field_bytes_read"] < 5 * 48 ** 3 * 12  # (loading every wanted brick
+    # each round read it 20 times over)
+    assert lines.attrs["brick_rounds"] > 1

@@ -19,7 +19,8 @@ import numpy as np
 B_SIZE, B_COUNT, B_NODES, B_TABLE = 0, 3, 6, 9
 NO_BRICKS = np.zeros(0, np.int64)
 
-MIN_SLOTS = 8  # a step may read a few bricks at once; fewer slots would make lines take turns
+MIN_SLOTS = 12  # what one line may need at once: its cell's 8 corner bricks and the 4 it last
+# waited for (integrate/rounds.py), so that a round always runs a line
 POOL_SHARE = 0.8  # of a memory budget for the bricks; the rest for lines, buffers, the runtime
 WHOLE_BYTES = 64 << 20  # an array in a file this small is read whole: bricks would not pay
 GROUP_BYTES = 256 << 20  # of pages ``by_bricks`` fills before it computes and gives them back
@@ -110,14 +111,15 @@ class BrickPool:
         keep[here[here >= 0]] = True
         free = np.flatnonzero(~keep)
         free = free[np.argsort(self.used[free], kind="stable")][:missing.size]
-        for brick, slot in zip(missing, free):
-            old = self.held[slot]
-            if old >= 0:
-                self.table[old] = -1
-            self._read(int(brick), int(slot))
-            self.held[slot] = brick
-            self.table[brick] = slot
-            self.used[slot] = self.clock
+        with self.stored.source.held():
+            for brick, slot in zip(missing, free):
+                old = self.held[slot]
+                if old >= 0:
+                    self.table[old] = -1
+                self._read(int(brick), int(slot))
+                self.held[slot] = brick
+                self.table[brick] = slot
+                self.used[slot] = self.clock
 
     def _read(self, brick: int, slot: int) -> None:
         """Brick ``brick`` into ``slot``: one aligned read (NaN past the grid's ends)."""

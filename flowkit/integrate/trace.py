@@ -27,11 +27,11 @@ from .launch import FieldArrays, Launch, MethodArrays
 from .methods import names
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES
+from .rounds import Rounds
 
 BUFFER_BYTES = 32 << 20  # output buffer of one pass: (tasks, budget) vertices of 40 bytes
 MAX_BUDGET = 1024  # vertices per line per pass (longer lines continue in the next pass)
 BATCH_SEEDS = 16384
-WANTED = 4  # bricks remembered per line of a bricked trace (Setup._ready)
 CELL_CAP = 1.25  # cell-aware steps: at most this times the straight-line time to the exit face
 PROGRESS_MIN_SEEDS = 20000
 
@@ -263,6 +263,7 @@ class Setup:
         self.method = m
         self.grid = g.kernel_args()
         self.bricks = brick_pool(field, opts, backend)
+        self.rounds = 0  # passes that ran the lines of one block of bricks (rounds.Rounds)
         if self.bricks is None:
             self.vec = field.vector
             fa = FieldArrays.of(field)
@@ -347,9 +348,10 @@ class Setup:
             B = 2
         out = self.buffers(n, B)  # one allocation, reused by every pass (later ones have fewer lines)
         extra = []
-        wanted = np.full((n, WANTED), -1, np.int64)  # the bricks each line waited for last
+        rounds = None if self.bricks is None else Rounds(self.bricks, n)
         while active.size:
-            ready = active if self.bricks is None else self._ready(active, si, wanted)
+            ready = active if rounds is None else rounds.ready(active, si)
+            self.rounds += 0 if rounds is None or ready is active else 1
             part, cols, busy = self.advance_pass(ready, seeds, dirs, spacing, phase, io, sf, si,
                                                  out)
             chunks.append(part)
@@ -365,42 +367,13 @@ class Setup:
         self._keep_point_data(extra, t, s, order)
         return pts[order], t, s, owner[order], si
 
-    def _ready(self, active, si, wanted):
-        """The lines of ``active`` that can run once the most wanted bricks are loaded: those
-        waiting for no brick, and those whose brick, the bricks of the cell they stand in and
-        the last few bricks they waited for (``wanted``, one row per line) are resident.  A
-        step may read several bricks (its stages, a face's neighbour), met one at a time: a line
-        given only the one it waits for now would lose the one before, and wait for it again."""
-        pool = self.bricks
-        wait = si[active, K.I_WAIT] - 1
-        waiting = wait >= 0
-        if not waiting.any():
-            return active
-        rows = active[waiting]
-        fresh = ~np.any(wanted[rows] == wait[waiting, None], axis=1)
-        wanted[rows[fresh], 1:] = wanted[rows[fresh], :-1]  # (newest first)
-        wanted[rows[fresh], 0] = wait[waiting][fresh]
-        home = pool.corner_bricks(np.where((si[rows, K.I_STATUS] == K.RUNNING)[:, None],
-                                           si[rows, K.I_CELL:K.I_CELL + 3], -1))
-        need = np.concatenate([wanted[rows], home], axis=1)
-        pool.load(need[need >= 0])
-
-        def ready():
-            out = ~waiting
-            out[waiting] = np.all((need < 0) | pool.resident(np.maximum(need, 0)), axis=1)
-            return out
-        run = ready()
-        if not run.any():  # the most wanted bricks split every waiting line's set
-            pool.load(need[0][need[0] >= 0])
-            run = ready()
-        return active[run]
-
     def reads(self) -> dict:
         """Lines.attrs entries of a field read brick by brick: what was read, and the pool."""
         b = self.bricks
         if b is None:
             return {}
         return {"bricks_read": b.loads, "field_bytes_read": b.bytes_read,
+                "brick_rounds": self.rounds,
                 "brick_pool_bytes": b.pool.nbytes}
 
     @property
