@@ -132,8 +132,8 @@ def test_a_state_written_by_name_resumes_as_documented(method):
                    sf=sf[active[0]].copy(), si=si[active[0]].copy())
         si[active, schema.I_STATUS] = schema.DONE  # and the trace ends here
 
-    trace(FIELD, np.zeros((1, 3)), backend=resume, method=method, cell_aware=False, step=h,
-          max_step=h, rtol=1e3, max_length=50.0, budget=2, empty="warn")
+    trace(FIELD, np.zeros((1, 3)), backend=resume, method=method, direction="forward", step=h,
+          cell_aware=False, max_step=h, rtol=1e3, max_length=50.0, budget=2, empty="warn")
     # the same two steps here, from the tableau (the field is linear: the kernel's is exact)
     y, t, ref = y0.copy(), tau0, []
     for _ in range(2):
