@@ -245,11 +245,11 @@ def test_source_contains_only_what_the_run_needs():
 
 
 def test_the_stiffness_test_takes_its_constants_from_python(monkeypatch):
-    from flowkit.integrate import kernel as K
+    from flowkit.integrate import stiffness
 
     src = _src(stiff_stage=5)
-    assert "hlam > 3.25)" in src and f">= {K.STIFF_STEPS})" in src
-    monkeypatch.setattr(K, "HLAMBDA_STIFF", 2.875)
+    assert "hlam > 3.25)" in src and f">= {stiffness.STIFF_STEPS})" in src
+    monkeypatch.setattr(stiffness, "HLAMBDA_STIFF", 2.875)
     assert "hlam > 2.875)" in _src(stiff_stage=5)
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from jinja2 import Environment, FileSystemLoader, StrictUndefined
 
 from .. import kernel as K
-from .. import schema
+from .. import schema, stiffness
 from .device import CPU_HINT, OpenCLUnavailable
 
 TEMPLATES = Path(__file__).with_name("templates")
@@ -69,6 +69,16 @@ def literal(x: float, real: str) -> str:
     return f"({s})" if s.startswith("-") else s
 
 
+def constants(*modules) -> dict:
+    """The upper-case numbers (tuning constants, reason codes) of the numba modules the template
+    mirrors, read at each render; the state columns and codes come from the schema."""
+    out = {}
+    for mod in modules:
+        out |= {n: v for n, v in vars(mod).items() if n.isupper() and n not in schema.CONSTANTS
+                and isinstance(v, (int, float))}
+    return out
+
+
 @cache
 def _env() -> Environment:
     return Environment(loader=FileSystemLoader(str(TEMPLATES)), undefined=StrictUndefined,
@@ -99,16 +109,12 @@ def render(flags: Flags, arrays) -> str:
         return (f"for (int a = 0; a < 3; a++) yt[a] = y[a] + hs * ({wsum(terms(a[st, :st]))});\n"
                 f"        rhs(yt[0], yt[1], yt[2], param, inc, &G, &C, k, {st} IMGA);")
 
-    # the kernel's tuning constants and reason codes; the columns and codes come from the schema
-    consts = SimpleNamespace(**{n: getattr(K, n) for n in dir(K) if n.isupper()
-                                and n not in schema.CONSTANTS
-                                and isinstance(getattr(K, n), (int, float))})
     return _env().get_template("advance.cl.j2").render(
         method=flags.method, real=real, aware=flags.aware, cross=flags.cross, periodic=flags.periodic,
         uniform=flags.uniform, image=flags.image, attrs=flags.attrs, n_scalars=flags.scalars,
         stiff_stage=stiff_stage,
         S=S, q=q, schema=SCHEMA_DEFINES,
-        c=consts, kexp=kexp, adaptive=adaptive, has_e2=has_e2, fs=fs,
+        c=SimpleNamespace(**constants(K, stiffness)), kexp=kexp, adaptive=adaptive, has_e2=has_e2, fs=fs,
         pre_stages=range(1, n_err), post_stages=range(n_err, fs + 1), dense_stages=range(fs + 1, S),
         b_terms=terms(b[:n_err]), e_terms=terms(e[:n_err]), e2_terms=terms(e2[:n_err]),
         p_terms=[terms(p[:, j]) for j in range(q)], wsum=wsum, stage_code=stage_code,
