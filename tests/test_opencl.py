@@ -7,6 +7,9 @@ docs/opencl.md and tested in ``test_float32_within_bound``.  Programs are compil
 (PoCL compiles take ~1 s each), so the cases share flags where they can.
 """
 
+import importlib
+import re
+
 import numpy as np
 import pytest
 
@@ -232,7 +235,7 @@ def test_source_contains_only_what_the_run_needs():
     plain = _src(aware=False, periodic=False, uniform=True)
     aware = _src(aware=True, periodic=True, uniform=False, real="float")
     assert "pymod" not in plain and "pymod(" in aware  # periodic wrap only when periodic
-    assert "move(&G, ev_axis" not in plain and "move(&G, ev_axis" in aware
+    assert "through_face(G, ev_axis" not in plain and "through_face(G, ev_axis" in aware
     assert "searchsorted" not in plain and "searchsorted" in aware  # rectilinear lookup
     assert "typedef double real" in plain and "cl_khr_fp64" in plain
     assert "typedef float real" in aware and "cl_khr_fp64" not in aware
@@ -245,12 +248,62 @@ def test_source_contains_only_what_the_run_needs():
 
 
 def test_the_stiffness_test_takes_its_constants_from_python(monkeypatch):
-    from flowkit.integrate import kernel as K
+    from flowkit.integrate import stiffness
 
     src = _src(stiff_stage=5)
-    assert "hlam > 3.25)" in src and f">= {K.STIFF_STEPS})" in src
-    monkeypatch.setattr(K, "HLAMBDA_STIFF", 2.875)
+    assert "hlam > 3.25)" in src and f">= {stiffness.STIFF_STEPS})" in src
+    monkeypatch.setattr(stiffness, "HLAMBDA_STIFF", 2.875)
     assert "hlam > 2.875)" in _src(stiff_stage=5)
+
+
+# the step loop's tuning constants, each with flags whose source uses it (DOP853: the second
+# error estimate; dopri5 with its stiffness stage; cell-aware with crossing steps)
+LOOP_CONSTANTS = [(n, "kernel", kw) for n, kw in [
+    ("NORM_TINY", {}), ("NORM_HUGE", {}), ("ERR_TINY", {}), ("ERR_HUGE", {}),
+    ("E3_WEIGHT", {"method": "dop853"}), ("NAN_SHRINK", {}), ("ERRP_MIN", {}), ("EXPO1_BETA", {}),
+    ("HINIT_TINY", {}), ("HINIT_H", {}), ("HINIT_FRAC", {}), ("HINIT_FLAT", {}),
+    ("HINIT_SHRINK", {}), ("HINIT_GROW", {}), ("H_AT_REST", {}), ("ROOT_ITERS", {}),
+    ("ROOT_TOL", {}), ("END_DUP", {}), ("KINK_CELLS", {"cross": True}),
+    ("KINK_GROW", {"cross": True}), ("KINK_SHRINK_MIN", {"cross": True}),
+    ("KINK_FAIL_MAX", {"cross": True}), ("KINK_BACKOFF_BITS", {"cross": True})]] + [
+    (n, "stiffness", {"stiff_stage": 5}) for n in (
+        "HLAMBDA_STIFF", "STIFF_STEPS", "NONSTIFF_RESET", "STIFF_COUNT_BITS", "STIFF_COUNT_MAX",
+        "STIFF_BIT")]
+
+
+@pytest.mark.parametrize("real", ["double", "float"])
+@pytest.mark.parametrize("name,module,kw", LOOP_CONSTANTS, ids=[c[0] for c in LOOP_CONSTANTS])
+def test_the_loop_takes_its_constants_from_python(monkeypatch, name, module, kw, real):
+    """A constant changed where the numba code reads it (float32's norm ranges: where codegen
+    keeps them) changes the source, and each line it changes holds the new value."""
+    mod = importlib.import_module(f"flowkit.integrate.{module}")
+    if real == "float" and name in codegen.FLOAT32_RANGES:  # float32's own, from codegen
+        new = codegen.FLOAT32_RANGES[name] * 1.0625
+        mod, target, value = codegen, "FLOAT32_RANGES", codegen.FLOAT32_RANGES | {name: new}
+    else:
+        old = getattr(mod, name)
+        new = old + 7 if isinstance(old, int) else old * 1.0625
+        target, value = name, new
+    lit = codegen.literal(new, real) if isinstance(new, float) else str(new)
+    before = _src(real=real, **kw).splitlines()
+    monkeypatch.setattr(mod, target, value)
+    changed = [line for line in _src(real=real, **kw).splitlines() if line not in before]
+    assert changed and all(lit in line for line in changed), (lit, changed)
+
+
+def test_the_loop_has_no_numbers_of_its_own():
+    """Numbers in the templates' C, outside what codegen renders: only 0, 1, 1/2 (a midpoint, a
+    texel centre), 3 (the RMS over the position's components) and small indices; xpow.cl.j2's
+    are its series'."""
+    num = re.compile(r"(?<![\w.])(?:\d+\.\d*(?:[eE][-+]?\d+)?|\d+[eE][-+]?\d+|0[xX][0-9a-fA-F]+"
+                     r"|\d+)[fFlL]?(?![\w.])")
+    allowed = {"0.0", "1.0", "0.5", "3.0", "0.0f", "0.5f", "0L", "1L"} | {str(i) for i in range(10)}
+    for path in sorted(codegen.TEMPLATES.glob("*.cl.j2")):
+        if path.name == "xpow.cl.j2":
+            continue
+        text = re.sub(r"\{#.*?#\}|\{\{.*?\}\}|\{%.*?%\}|/\*.*?\*/|//[^\n]*", " ",
+                      path.read_text(), flags=re.DOTALL)
+        assert set(num.findall(text)) <= allowed, (path.name, set(num.findall(text)) - allowed)
 
 
 def test_stages_are_the_tableau_literals():

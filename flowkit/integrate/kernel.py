@@ -119,13 +119,7 @@ from .schema import (  # noqa: F401
     S_Y,
     S_Y0,
 )
-from .stiffness import (  # noqa: F401 (the constants: the OpenCL template reads them here)
-    HLAMBDA_STIFF,
-    NONSTIFF_RESET,
-    STIFF_STEPS,
-    dp5_hlambda,
-    stiff_update,
-)
+from .stiffness import dp5_hlambda, stiff_update
 from .threads import run_ranges
 
 # P_CROSS (cell-aware, adaptive): a step the controller wants longer than the cell cap is tried
@@ -134,6 +128,26 @@ from .threads import run_ranges
 # like h^2, so the longest crossing step has its own controller (S_HK): shrunk by a rejected
 # crossing, grown on every face the line steps through.
 KINK_CELLS, KINK_GROW, KINK_SHRINK_MIN = 3.0, 1.15, 0.1
+# a crossing refused n times in a row is not tried again for 2^(KINK_BACKOFF_BITS (n - 1)) - 1
+# capped steps, n at most KINK_FAIL_MAX
+KINK_BACKOFF_BITS, KINK_FAIL_MAX = 2, 10
+
+# The step loop's other tuning constants, by name: the OpenCL template renders these very values
+# (opencl/codegen.py reads every upper-case number of this module)
+NORM_TINY, NORM_HUGE = 1e-150, 1e150  # _norm3 rescales a norm outside (squares over/underflow)
+ERR_TINY, ERR_HUGE = 1e-250, 1e250  # _step_end: the same for the error norm's sum of squares
+E3_WEIGHT = 0.01  # DOP853's error norm |e5|² / sqrt(|e5|² + E3_WEIGHT |e3|²) (Hairer)
+NAN_SHRINK = 0.25  # _retry: a step that met NaN data is tried again this much shorter
+ERRP_MIN = 1e-4  # _next_step: the PI controller remembers an error of at least this
+EXPO1_BETA = 0.75  # the controller's error exponent 1/k - EXPO1_BETA beta (Hairer's dopri5)
+# Hairer's initial step (_initial_guess, _initial_step): h0 = HINIT_FRAC |y0| / |f(y0)| (HINIT_H
+# where either norm is below HINIT_TINY), h1 = (HINIT_FRAC / max(|f|, |f'|))^(1/k) (where that
+# max is below HINIT_FLAT, max(HINIT_H, HINIT_SHRINK h0)), the step min(HINIT_GROW h0, h1)
+HINIT_TINY, HINIT_H, HINIT_FRAC, HINIT_FLAT = 1e-5, 1e-6, 0.01, 1e-15
+HINIT_SHRINK, HINIT_GROW = 1e-3, 100.0
+H_AT_REST = 1.0  # _start: the first step of a line whose seed is at rest (it stagnates at once)
+ROOT_ITERS, ROOT_TOL = 60, 4e-16  # _root: Newton iterations at most, and the θ it resolves
+END_DUP = 1e-9  # _emit_pending: a resampled vertex this close to the end (in spacings) is the end
 
 R_OUT = int(Reason.OUT_OF_DOMAIN)
 R_MAXLEN = int(Reason.MAX_LENGTH)
@@ -333,7 +347,7 @@ def _norm3(u, v, w):
     """|(u, v, w)|: the plain formula, rescaled by the largest component only where the squares
     would overflow or underflow (so normal speeds stay bit-identical to the OpenCL kernel's)."""
     sp = math.sqrt(u * u + v * v + w * w)
-    if not (sp > 1e-150 and sp < 1e150):
+    if not (sp > NORM_TINY and sp < NORM_HUGE):
         m = max(abs(u), abs(v), abs(w))
         if m > 0.0 and m < math.inf:
             a, b, c = u / m, v / m, w / m
@@ -506,7 +520,7 @@ def _root(qd, comp, q, y0, hs, target, sgn, thi):
         return thi  # only rounding keeps the dense end short of the event
     # from the secant estimate; on the face itself (ga == 0) look for the crossing after θ = 0
     th = a - ga * (b - a) / (gb - ga) if ga < 0.0 else 0.5 * b
-    for _ in range(60):
+    for _ in range(ROOT_ITERS):
         r = 0.0
         dr = 0.0
         for j in range(q - 1, -1, -1):
@@ -523,7 +537,7 @@ def _root(qd, comp, q, y0, hs, target, sgn, thi):
         nxt = th - g / dg
         if not (nxt > a and nxt < b):
             nxt = 0.5 * (a + b)
-        if abs(nxt - th) <= 4e-16 or b - a <= 4e-16:
+        if abs(nxt - th) <= ROOT_TOL or b - a <= ROOT_TOL:
             return nxt
         th = nxt
     return th
@@ -581,7 +595,7 @@ def _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, 
     if si[l, I_FINAL] != 0:
         s_end = sf[l, S_DEP] if param == 0 else sf[l, S_TAU]
         t_end = sf[l, S_TAU] if param == 0 else sf[l, S_DEP]
-        dup = abs(sf[l, S_LAST_S] - s_end) <= 1e-9 * spacing
+        dup = abs(sf[l, S_LAST_S] - s_end) <= END_DUP * spacing
         if dup and out_n[slot] > 0:
             out_n[slot] -= 1  # replace a resampled vertex that coincides with the end
         elif dup:
@@ -611,7 +625,7 @@ def _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1):
         e5 += (hs * ea / sc) ** 2
         e3 += (hs * eb / sc) ** 2
     if has_e2:
-        den = e5 + 0.01 * e3
+        den = e5 + E3_WEIGHT * e3
         return 0.0 if den == 0.0 else e5 / math.sqrt(den * 3.0)
     return math.sqrt(e5 / 3.0)
 
@@ -652,11 +666,11 @@ def _step_end(y, k, hs, mb, me, me2, n_err, adaptive, has_e2, fo, y1):
     err = 0.0
     if adaptive:
         if has_e2:
-            den = e5 + 0.01 * e3
+            den = e5 + E3_WEIGHT * e3
             err = 0.0 if den == 0.0 else abs(hs) * e5 / math.sqrt(den * 3.0)
         else:
             err = abs(hs) * math.sqrt(e5 / 3.0)
-        if finite and not (e5 + e3 > 1e-250 and e5 + e3 < 1e250):
+        if finite and not (e5 + e3 > ERR_TINY and e5 + e3 < ERR_HUGE):
             err = _err_rescaled(hs, k, me, me2, n_err, has_e2, fo, y, y1)  # (huge speeds)
         if not math.isfinite(err):
             finite = False
@@ -670,7 +684,7 @@ def _retry(hs, err, nan, hmin, safety, facmin, expo1):
     norm err; and the reason to stop instead (R_NAN, R_UNDER; -1: retry) when it falls below
     hmin.  Shared with the pathline and Rosenbrock kernels."""
     if nan:
-        h = 0.25 * hs
+        h = NAN_SHRINK * hs
         stop = R_NAN
     else:
         h = hs * max(facmin, safety * err ** (-expo1))
@@ -727,8 +741,8 @@ def _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax, beta, 
         g = min(facmax, max(facmin, safety * errpb / err ** expo1))
     if last_rej:
         g = min(g, 1.0)
-    if max(err, 1e-4) != errp:  # errp ** beta only when errp changes (often 1e-4)
-        errp = max(err, 1e-4)
+    if max(err, ERRP_MIN) != errp:  # errp ** beta only when errp changes (often ERRP_MIN)
+        errp = max(err, ERRP_MIN)
         errpb = errp ** beta
     hnext = hs * g
     if g >= 1.0 and abs(h) > abs(hnext):
@@ -759,7 +773,7 @@ def _initial_guess(fo, y, k):
         d0 += (y[a] / (fo[O_ATOL + a] + fo[O_RTOL + a] * abs(y[a]))) ** 2
     d0 = math.sqrt(d0 / 3.0)
     d1 = _scaled_rms(fo, y, k, np.int64(0), np.int64(-1))  # typed (see helper)
-    return (1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1), d1
+    return (HINIT_H if (d0 < HINIT_TINY or d1 < HINIT_TINY) else HINIT_FRAC * d0 / d1), d1
 
 
 @inline
@@ -767,11 +781,11 @@ def _initial_step(fo, y, k, h0, d1, kexp, ok):
     """Second half: the step from the change of f over h0 (k[1] - k[0]); ``ok`` False when the
     second evaluation failed (NaN data)."""
     d2 = _scaled_rms(fo, y, k, np.int64(1), np.int64(0)) / h0
-    if not ok or max(d1, d2) <= 1e-15 or not math.isfinite(d2):
-        h1 = max(1e-6, h0 * 1e-3)
+    if not ok or max(d1, d2) <= HINIT_FLAT or not math.isfinite(d2):
+        h1 = max(HINIT_H, h0 * HINIT_SHRINK)
     else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / kexp)
-    return min(100.0 * h0, h1)
+        h1 = (HINIT_FRAC / max(d1, d2)) ** (1.0 / kexp)
+    return min(HINIT_GROW * h0, h1)
 
 
 @inline
@@ -855,10 +869,10 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, bk, kexp,
             return False
         h = _initial_step(fo, y, k, h0, d1, kexp, np.bool_(True))
     elif h <= 0.0:
-        h = 1.0
+        h = H_AT_REST
     h = d * min(h, fo[O_HMAX])
     zero = np.int64(0)
-    _store(sf, si, l, y, k, 0.0, h, 1e-4, zero, zero, np.bool_(False), abs(h), zero, zero, zero,
+    _store(sf, si, l, y, k, 0.0, h, ERRP_MIN, zero, zero, np.bool_(False), abs(h), zero, zero, zero,
            cf, ci)
     si[l, I_PEND] = si[l, I_FINAL] = 0
     for a in range(4):  # the seed, at time 0
@@ -904,7 +918,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
     lim_dep = fo[O_MAXLEN] if param == 0 else fo[O_MAXTIME]
     r_ind = R_MAXTIME if param == 0 else R_MAXLEN
     r_dep = R_MAXLEN if param == 0 else R_MAXTIME
-    expo1 = 1.0 / kexp - 0.75 * beta
+    expo1 = 1.0 / kexp - EXPO1_BETA * beta
     n_step = max(n_err, fs + 1)  # the stages of every step (the last one: f(y1))
     B = out_p.shape[1]
     mode = io[P_PASS]
@@ -1084,8 +1098,8 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 n_rej += 1
                 hk = abs(hs) * (max(KINK_SHRINK_MIN, safety / math.sqrt(err)) if finite
                                 else KINK_SHRINK_MIN)
-                kfail = min(kfail + 1, 10)
-                kwait = (1 << (2 * kfail - 2)) - 1
+                kfail = min(kfail + 1, KINK_FAIL_MAX)
+                kwait = (1 << (KINK_BACKOFF_BITS * (kfail - 1))) - 1
                 continue
             # rejected: NaN data met by a stage, an error above the tolerance, or y1 itself in
             # a NaN cell (f(y1), computed once the step passed its error test)

@@ -29,7 +29,11 @@ from numba import njit
 HLAMBDA_STIFF = 3.25  # DP5's stability interval on the negative real axis is about 3.3
 STIFF_STEPS = 15
 NONSTIFF_RESET = 6
-_STIFF_BIT = 1 << 16  # state: bits 0-7 stiff count, 8-15 non-stiff count, bit 16 stiff flag
+# the state: the stiff count in bits 0-7, the non-stiff count in bits 8-15, the flag in bit 16
+# (named: the OpenCL template renders them)
+STIFF_COUNT_BITS = 8
+STIFF_COUNT_MAX = (1 << STIFF_COUNT_BITS) - 1
+STIFF_BIT = 1 << (2 * STIFF_COUNT_BITS)
 
 
 @njit(cache=True)
@@ -70,25 +74,25 @@ def hlambda(h, num, den):
 @njit(cache=True)
 def stiff_update(state, hlam):
     """The stiffness state after one accepted step with estimate ``hlam``."""
-    flag = state & _STIFF_BIT
-    n_stiff = state & 0xFF
-    n_non = (state >> 8) & 0xFF
+    flag = state & STIFF_BIT
+    n_stiff = state & STIFF_COUNT_MAX
+    n_non = (state >> STIFF_COUNT_BITS) & STIFF_COUNT_MAX
     if hlam > HLAMBDA_STIFF:
         n_non = 0
-        n_stiff = min(n_stiff + 1, 255)
+        n_stiff = min(n_stiff + 1, STIFF_COUNT_MAX)
         if n_stiff >= STIFF_STEPS:
-            flag = _STIFF_BIT
+            flag = STIFF_BIT
     else:
-        n_non = min(n_non + 1, 255)
+        n_non = min(n_non + 1, STIFF_COUNT_MAX)
         if n_non >= NONSTIFF_RESET:
             n_stiff = 0
-    return flag | (n_non << 8) | n_stiff
+    return flag | (n_non << STIFF_COUNT_BITS) | n_stiff
 
 
 @njit(cache=True)
 def is_stiff(state):
     """True once the line has met STIFF_STEPS consecutive stiff steps."""
-    return (state & _STIFF_BIT) != 0
+    return (state & STIFF_BIT) != 0
 
 
 @njit(cache=True)

@@ -1,6 +1,8 @@
 """Render the OpenCL kernel source from the method's tableau arrays, and cache compiled programs.
 
-The source is ``templates/advance.cl.j2`` rendered with flags that say what the run needs; the
+The source is ``templates/advance.cl.j2`` (the step loop, ``kernel._advance_lines``) and the
+includes it names, one per group of numba helpers they mirror, rendered with flags that say what
+the run needs; every tuning constant is rendered from the numba module that defines it.  The
 stages are unrolled from ``Method.kernel_arrays()`` (the arrays the numba kernel reads) as literal
 coefficients that parse back to exactly the same number (``repr`` of the float64 value; for
 float32 the float32-rounded value).  Zero coefficients are left out: adding ``0.0 * k`` never
@@ -18,7 +20,7 @@ import numpy as np
 from jinja2 import Environment, FileSystemLoader, StrictUndefined
 
 from .. import kernel as K
-from .. import schema
+from .. import schema, stiffness
 from .device import CPU_HINT, OpenCLUnavailable
 
 TEMPLATES = Path(__file__).with_name("templates")
@@ -26,6 +28,9 @@ TEMPLATES = Path(__file__).with_name("templates")
 # int options reach it as scalar arguments and the method's integers as literals
 SCHEMA_DEFINES = schema.c_defines((schema.FLOAT_STATE, schema.INT_STATE, schema.FLOAT_OPTIONS),
                                   ("I_STATUS", "P_EMIT", "step event"))
+# kernel's NORM_/ERR_ ranges for float32, whose squares over- and underflow far sooner (float64
+# takes kernel's own)
+FLOAT32_RANGES = {"NORM_TINY": 1e-18, "NORM_HUGE": 1e18, "ERR_TINY": 1e-30, "ERR_HUGE": 1e30}
 
 
 @dataclass(frozen=True)
@@ -69,6 +74,16 @@ def literal(x: float, real: str) -> str:
     return f"({s})" if s.startswith("-") else s
 
 
+def constants(*modules) -> dict:
+    """The upper-case numbers (tuning constants, reason codes) of the numba modules the template
+    mirrors, read at each render; the state columns and codes come from the schema."""
+    out = {}
+    for mod in modules:
+        out |= {n: v for n, v in vars(mod).items() if n.isupper() and n not in schema.CONSTANTS
+                and isinstance(v, (int, float))}
+    return out
+
+
 @cache
 def _env() -> Environment:
     return Environment(loader=FileSystemLoader(str(TEMPLATES)), undefined=StrictUndefined,
@@ -97,18 +112,16 @@ def render(flags: Flags, arrays) -> str:
 
     def stage_code(st):
         return (f"for (int a = 0; a < 3; a++) yt[a] = y[a] + hs * ({wsum(terms(a[st, :st]))});\n"
-                f"        rhs(yt[0], yt[1], yt[2], param, inc, &G, &C, k, {st} IMGA);")
+                f"        rhs(yt[0], yt[1], yt[2], param, inc, G, &C, k, {st} IMGA);")
 
-    # the kernel's tuning constants and reason codes; the columns and codes come from the schema
-    consts = SimpleNamespace(**{n: getattr(K, n) for n in dir(K) if n.isupper()
-                                and n not in schema.CONSTANTS
-                                and isinstance(getattr(K, n), (int, float))})
+    ranges = {n: getattr(K, n) for n in FLOAT32_RANGES} if real == "double" else FLOAT32_RANGES
     return _env().get_template("advance.cl.j2").render(
         method=flags.method, real=real, aware=flags.aware, cross=flags.cross, periodic=flags.periodic,
         uniform=flags.uniform, image=flags.image, attrs=flags.attrs, n_scalars=flags.scalars,
         stiff_stage=stiff_stage,
         S=S, q=q, schema=SCHEMA_DEFINES,
-        c=consts, kexp=kexp, adaptive=adaptive, has_e2=has_e2, fs=fs,
+        c=SimpleNamespace(**constants(K, stiffness)), rng=SimpleNamespace(**ranges),
+        kexp=kexp, adaptive=adaptive, has_e2=has_e2, fs=fs,
         pre_stages=range(1, n_err), post_stages=range(n_err, fs + 1), dense_stages=range(fs + 1, S),
         b_terms=terms(b[:n_err]), e_terms=terms(e[:n_err]), e2_terms=terms(e2[:n_err]),
         p_terms=[terms(p[:, j]) for j in range(q)], wsum=wsum, stage_code=stage_code,
