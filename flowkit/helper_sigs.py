@@ -1,7 +1,7 @@
 """The helpers each kernel's compilation asks for, with their argument types, in the
-order its typing asks for them (written by `python -m flowkit.parallel_compile
---write` on an empty cache; tests/test_compile_cost.py checks it against a default
-trace; flowkit/parallel_compile.py says what it is for)."""
+order its typing asks for them (written by `python -m flowkit.write_helper_sigs`
+on an empty cache; tests/test_compile_cost.py checks it against a default trace;
+flowkit/parallel_compile.py says what it is for)."""
 
 from numba.core import types as t
 

@@ -221,7 +221,7 @@ class Lines:
         """Lines from a ``pyvista.PolyData`` of polylines, e.g. PyVista's ``streamlines()``."""
         from .io.pyvista_io import lines_from_pyvista
 
-        return lines_from_pyvista(poly)
+        return lines_from_pyvista(poly, cls)
 
     def to_pandas(self):
         """One row per vertex: ``line`` and ``vertex`` (its index along the line), x, y, z,

@@ -18,13 +18,14 @@ alone (``cache=True``, numba's standard pipeline), only its first compile is slo
   ``forceinline`` for the helpers on a kernel's per-step path (compiled once, inlined by LLVM:
   numba's IR inlining types a copy at every call site, three times the compile time).
 - ``shared_dispatcher``: a helper's dispatcher that takes its turn with a second compile
-  process (``parallel_compile.turn``).
+  process (``compile_turn``, which parallel_compile sets while one runs).
 - ``prefetch``: LLVM's prefetch intrinsic, a cache hint (a no-op function without).
 - ``cache_index``, ``cache_path``, ``user_cache_dir``: what numba's disk cache holds and where.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 from numba import njit
@@ -34,6 +35,15 @@ WHY = "switched off (FLOWKIT_NUMBA_ACCELERATORS=0)"
 Lean = None
 KERNEL_OPTIONS: dict = {}  # added to a step loop's njit options
 HELPER_OPTIONS: dict = {}  # a helper's target options beside nopython and numpy's error model
+
+
+def _alone(dispatcher, sig):
+    return contextlib.nullcontext()
+
+
+# around each helper's compilation: parallel_compile.turn while a second process compiles the
+# helpers too (set there: that module builds on this one, so this one does not import it)
+compile_turn = _alone
 
 if os.environ.get("FLOWKIT_NUMBA_ACCELERATORS", "1") != "0":
     try:
@@ -81,9 +91,7 @@ if AVAILABLE:
         copy of a helper instead of compiling its own."""
 
         def compile(self, sig):
-            from . import parallel_compile  # (not at import: `python -m` runs that module)
-
-            with parallel_compile.turn(self, sig):
+            with compile_turn(self, sig):
                 return super().compile(sig)
 
     def shared_dispatcher(fn, options: dict):

@@ -29,7 +29,7 @@ kernels users add next: the Rosenbrock and pathline integrators.  Their first tr
 compiles its own kernel.
 
 The helpers and their argument types are the table in ``helper_sigs.py``, written by ``python -m
-flowkit.parallel_compile --write`` from traces on an empty cache and checked by
+flowkit.write_helper_sigs`` from traces on an empty cache and checked by
 tests/test_compile_cost.py.  A stale entry only wastes the other process's time (it compiles a
 signature nobody asks for); it never changes what this process runs.
 """
@@ -46,11 +46,11 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import textwrap
 import threading
 import time
 from pathlib import Path
 
+from . import numba_private
 from .numba_cache import in_disk_cache
 
 LOG = logging.getLogger("flowkit.compile")
@@ -78,16 +78,13 @@ def _python() -> str | None:
 
 
 def enabled() -> bool:
-    from .numba_private import AVAILABLE  # (turns are taken by the accelerators' dispatcher)
-
-    return (AVAILABLE and os.environ.get("FLOWKIT_PARALLEL_COMPILE", "1") != "0"
+    # (turns are taken by the accelerators' dispatcher)
+    return (numba_private.AVAILABLE and os.environ.get("FLOWKIT_PARALLEL_COMPILE", "1") != "0"
             and _cores() > 1 and _python() is not None)
 
 
 def _writes_cache(dispatcher) -> bool:
-    from .numba_private import cache_path
-
-    path = cache_path(dispatcher)
+    path = numba_private.cache_path(dispatcher)
     return path is not None and os.access(path, os.W_OK)
 
 
@@ -133,11 +130,18 @@ class _Turns:
 _turns: _Turns | None = None
 
 
+def _share(turns: _Turns) -> None:
+    """Take turns with the other process from now on, in every helper's compilation."""
+    global _turns
+    _turns = turns
+    numba_private.compile_turn = turn
+
+
 @contextlib.contextmanager
 def turn(dispatcher, sig):
-    """Around a helper's compilation (``jit._Shared.compile``): with a second process at work
-    and the helper in its table, compile it here only if this process claims it first; else wait
-    for the other's copy, which the compilation then loads from the disk cache."""
+    """Around a helper's compilation (``numba_private._Shared.compile``): with a second process
+    at work and the helper in its table, compile it here only if this process claims it first;
+    else wait for the other's copy, which the compilation then loads from the disk cache."""
     turns, key = _turns, None
     if turns is not None:
         from numba.core import sigutils
@@ -199,8 +203,7 @@ def start(kernel: str, dispatcher, dtype: str = "float64") -> subprocess.Popen |
     except OSError as e:  # the interpreter cannot be started: compile here alone
         LOG.debug("no second compile process: %s", e)
         return None
-    global _turns
-    _turns = _Turns(folder, lambda: proc.poll() is None, dtype)
+    _share(_Turns(folder, lambda: proc.poll() is None, dtype))
     # the reaper holds the process, and so the pipe to it, open until it ends (or this one does)
     threading.Thread(target=_reap, args=(proc,), daemon=True, name="flowkit-compile-reaper").start()
     return proc
@@ -247,102 +250,16 @@ def _parent_alive() -> threading.Event:
     return alive
 
 
-# -- writing the table ------------------------------------------------------------------------
-def _type_src(ty) -> str:
-    from numba.core import types
-
-    if isinstance(ty, types.Array) and ty.layout == "C" and ty.mutable and ty.ndim <= 4:
-        return f"{_type_src(ty.dtype)}{ty.ndim}"  # F2: a C-contiguous 2-d float64 array
-    names = {types.float64: "F", types.int64: "I", types.boolean: "B"}
-    if ty in names:
-        return names[ty]
-    raise ValueError(f"helper_sigs: no source form for the type {ty!r}")
-
-
-def compile_order(run, kernel: str) -> list[tuple[str, str, tuple]]:
-    """(module, name, argument types) of every flowkit function compiled while ``run()``
-    compiles ``kernel`` (a qualified name), in the order the compilations end (the kernel's
-    typing asks for a helper's callees first), the kernel itself left out."""
-    from numba.core import event
-
-    seen = {}  # (module, name) -> dispatcher, in the order they were compiled
-
-    class Listener(event.Listener):
-        def on_start(self, ev):
-            pass
-
-        def on_end(self, ev):
-            d = ev.data["dispatcher"]
-            name = (d.py_func.__module__, d.py_func.__qualname__)
-            if name[0].startswith("flowkit.") and ".".join(name) != kernel:
-                seen.setdefault(name, d)
-
-    with event.install_listener("numba:compile", Listener()):
-        run()
-    out = []
-    for (m, n), d in seen.items():
-        (sig,) = d.signatures
-        out.append((m, n, tuple(sig)))
-    return out
-
-
-def write_table(path: Path | None = None) -> Path:
-    """Write helper_sigs.py from a default trace and the traces of ``NEXT`` (run on an empty
-    cache: a helper loaded from the cache is not seen compiling)."""
-    # this process compiles every helper itself: one a second process stored would be loaded
-    os.environ["FLOWKIT_PARALLEL_COMPILE"] = "0"
-    import flowkit
-    from flowkit import warmup
-    from flowkit.integrate.pathlines import pathlines
-
-    field = warmup.stand_in()
-    # in this order, each after the one before (a helper already compiled is not listed again)
-    kernels = {"flowkit.integrate.kernel._advance_lines":
-               lambda: flowkit.trace(field, warmup.SEEDS, max_length=4.0),
-               "flowkit.integrate.rosenbrock._lines":
-               lambda: flowkit.trace(field, warmup.SEEDS, max_length=4.0, method="ros34pw2"),
-               "flowkit.integrate.pathlines._lines":
-               lambda: pathlines([(0.0, field), (1.0, warmup.stand_in(t=1.0))], warmup.SEEDS,
-                                 max_time=1.0)}
-    lines = ['"""The helpers each kernel\'s compilation asks for, with their argument types, in the',
-             "order its typing asks for them (written by `python -m flowkit.parallel_compile",
-             "--write` on an empty cache; tests/test_compile_cost.py checks it against a default",
-             'trace; flowkit/parallel_compile.py says what it is for)."""',
-             "", "from numba.core import types as t", "",
-             "F, I, B = t.float64, t.int64, t.boolean",
-             "F1, F2, F3, F4 = (t.Array(F, n, \"C\") for n in (1, 2, 3, 4))",
-             "I1, I2, I3, I4 = (t.Array(I, n, \"C\") for n in (1, 2, 3, 4))",
-             "B1, B2, B3, B4 = (t.Array(B, n, \"C\") for n in (1, 2, 3, 4))",
-             "", "HELPERS = {"]
-    for kernel, run in kernels.items():
-        lines.append(f'    "{kernel}": (')
-        for m, n, sig in compile_order(run, kernel):
-            args = ", ".join(_type_src(a) for a in sig) + ","
-            lines += textwrap.wrap(f'("{m}", "{n}", ({args})),', 99, initial_indent=" " * 8,
-                                   subsequent_indent=" " * 9, break_long_words=False)
-        lines.append("    ),")
-    lines.append("}")
-    path = path or Path(__file__).with_name("helper_sigs.py")
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if argv == ["--write"]:  # in a process of its own on an empty cache (see write_table)
-        with tempfile.TemporaryDirectory() as cache:
-            code = "from flowkit.parallel_compile import write_table; print(write_table())"
-            return subprocess.run([sys.executable, "-c", code], check=False,
-                                  env=dict(os.environ, NUMBA_CACHE_DIR=cache)).returncode
-    # the folder of turns (where a first process takes its share) and the field's type
+    # the folder of turns (where a first process takes its share) and the field's type; the
+    # cache location is set as in the process that started this one: `python -m` imported
+    # flowkit before this module
     kernel, *rest = argv
     dtype = rest[1] if len(rest) > 1 else "float64"
-    import flowkit  # noqa: F401 (the cache location, as in the process that started this one)
-
-    global _turns
     alive = _parent_alive()
     if rest:
-        _turns = _Turns(rest[0], alive.is_set, dtype)
+        _share(_Turns(rest[0], alive.is_set, dtype))
     compile_helpers(kernel, dtype=dtype)
     for nxt in NEXT.get(kernel, ()):
         compile_helpers(nxt, alive.is_set, dtype)

@@ -92,7 +92,7 @@ def test_default_trace_compiles_one_specialization_of_each_function(tmp_path):
         assert len(res["notices"]) == len(set(res["notices"]))
     assert together["points"] == alone["points"]
     # that process's table (helper_sigs.py) names every helper the kernel asks for, with the
-    # argument types it asks for (else: python -m flowkit.parallel_compile --write)
+    # argument types it asks for (else: python -m flowkit.write_helper_sigs)
     assert not alone["stale"], f"helper_sigs.py is stale for {alone['stale']}"
     helpers = {n for n, sig in alone["sigs"].items() if sig and n != "_advance_lines"}
     assert helpers <= set(alone["table"]), helpers - set(alone["table"])
@@ -176,7 +176,7 @@ def test_attributes_pathlines_rosenbrock_lanes_compile_one_specialization_each(t
                          text=True, timeout=900, check=True).stdout
     counts = json.loads(out.strip().splitlines()[-1])
     stale = counts.pop("stale")
-    assert not stale, f"helper_sigs.py is stale for {stale}: python -m flowkit.parallel_compile --write"
+    assert not stale, f"helper_sigs.py is stale for {stale}: python -m flowkit.write_helper_sigs"
     many = {m: {n: c for n, c in d.items() if c > 1} for m, d in counts.items()}
     assert not any(many.values()), f"compiled more than once: {many}"
     assert counts["flowkit.integrate.pathlines"]["_velocity"] == 1

@@ -10,7 +10,7 @@ import time
 import numba
 import pytest
 
-from flowkit.integrate import threads
+from flowkit import threads
 
 pytestmark = pytest.mark.skipif(numba.get_num_threads() < 2, reason="needs two numba threads")
 

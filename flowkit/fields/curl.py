@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..integrate.threads import run_ranges
 from ..jit import inline, prefetch
+from ..threads import run_ranges
 from . import interp
 from .bricks import by_bricks, read_whole
 

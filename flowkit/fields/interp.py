@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..integrate.threads import run_ranges
 from ..jit import inline, prefetch
+from ..threads import run_ranges
 
 INSIDE = 0
 OUTSIDE = 1

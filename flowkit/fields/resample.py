@@ -23,8 +23,8 @@ import math
 
 import numpy as np
 
-from ..integrate.threads import run_ranges
 from ..jit import inline, kernel
+from ..threads import run_ranges
 from .grid import Grid
 from .mesh import Elements, centre, map_point, n_nodes, shape
 from .stored import Source

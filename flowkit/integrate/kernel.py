@@ -38,6 +38,7 @@ from ..fields.bricks import B_COUNT, B_NODES, B_SIZE, B_TABLE
 from ..fields.interp import locate_axis, prefetch_cell, prefetch_corners
 from ..jit import helper, inline, kernel
 from ..jit import prefetch as _prefetch  # noqa: F401 (lanes.py, benchmarks)
+from ..threads import run_ranges
 from .reasons import Reason
 
 # the state, option and method-info columns (schema.py), all of them: callers address them as
@@ -120,7 +121,6 @@ from .schema import (  # noqa: F401
     S_Y0,
 )
 from .stiffness import dp5_hlambda, stiff_update
-from .threads import run_ranges
 
 # P_CROSS (cell-aware, adaptive): a step the controller wants longer than the cell cap is tried
 # across faces, each stage in its own cell, and kept when its error estimate passes; otherwise

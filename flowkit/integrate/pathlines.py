@@ -37,6 +37,7 @@ from ..fields import Field
 from ..fields.interp import locate_axis, trilinear_vector
 from ..jit import inline, kernel
 from ..lines import Lines
+from ..threads import run_ranges
 from . import attributes as _attributes
 from .kernel import (
     _dense,
@@ -85,7 +86,6 @@ from .schema import (
     RUNNING,
     S_TAU,
 )
-from .threads import run_ranges
 from .trace import typical_speed
 
 # the rows of a pathline (schema.py): the streamline kernel's leading columns, read and written

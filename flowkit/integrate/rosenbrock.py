@@ -37,13 +37,13 @@ from ..fields import Field
 from ..fields.bricks import NO_BRICKS
 from ..jit import inline, kernel
 from ..lines import Lines
+from ..threads import run_ranges
 from . import kernel as K
 from .kernel import _dense, _fc, _norm3, _put, _relocate, _root
 from .methods import get_method
 from .options import TraceOptions
 from .schema import I_NACC, I_NREJ, I_REASON, I_STATUS, ROS_INT_STATE
 from .stiffness import HLAMBDA_STIFF, cell_jacobian, spectral_radius_bound, stiff_update
-from .threads import run_ranges
 from .trace import trace
 
 NAME = "ros34pw2"

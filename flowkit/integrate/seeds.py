@@ -35,6 +35,7 @@ from ..fields.bricks import read_whole
 from ..fields.field import Field
 from ..fields.grid import Grid
 from ..fields.interp import INSIDE
+from ..seeding.errors import SeedError
 
 SPEC_HELP = (
     "a .npy/.csv/.txt file of x,y,z points; points:x,y,z[:x,y,z...]; "
@@ -46,10 +47,6 @@ SPEC_HELP = (
     "with a d suffix a fraction of the domain diagonal, e.g. 1/30d)"
 )
 FILE_TYPES = (".npy", ".csv", ".txt")
-
-
-class SeedError(ValueError):
-    """Seeds that cannot be made: bad file, bad spec, bad arguments."""
 
 
 CHECK_ONLY = object()  # as parse_seed_spec's field: check the spec's own parts, make no seeds

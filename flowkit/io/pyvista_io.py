@@ -5,8 +5,10 @@
   points x fastest; flowkit's arrays are indexed [i, j, k], so each array is reordered once.
 - ``lines_to_pyvista(lines)``: a ``pyvista.PolyData`` of polylines with the per-vertex
   attributes as point data and the per-line data as cell data (``Lines.to_pyvista``).
-- ``lines_from_pyvista(poly)``: Lines from a PolyData of polylines, e.g. what PyVista's own
-  ``streamlines()`` returns, so the two can be compared (``Lines.from_pyvista``).
+- ``lines_from_pyvista(poly, cls)``: Lines (``cls``) from a PolyData of polylines, e.g. what
+  PyVista's own ``streamlines()`` returns, so the two can be compared (``Lines.from_pyvista``).
+
+Lines' methods call this module, so it takes their class from them rather than importing it.
 """
 
 from __future__ import annotations
@@ -15,7 +17,6 @@ import numpy as np
 
 from ..fields.field import Field
 from ..fields.grid import Grid
-from ..lines import Lines
 
 
 def _pyvista():
@@ -66,7 +67,7 @@ def field_from_pyvista(grid, vector: str | None = None, source: str = "<pyvista>
     return Field(g, nodes(arrays[vector]), scalars, vector_name=vector, source=source)
 
 
-def lines_to_pyvista(lines: Lines):
+def lines_to_pyvista(lines):
     """A ``pyvista.PolyData``: one polyline per line, attributes as point and cell data."""
     pv = _pyvista()
     n = lines.n_vertices
@@ -84,9 +85,9 @@ def lines_to_pyvista(lines: Lines):
     return poly
 
 
-def lines_from_pyvista(poly) -> Lines:
-    """Lines from a PolyData of polylines (its points reordered line by line, as the lines'
-    connectivity visits them); point data and cell data come along."""
+def lines_from_pyvista(poly, cls):
+    """Lines (``cls``) from a PolyData of polylines (its points reordered line by line, as the
+    lines' connectivity visits them); point data and cell data come along."""
     _pyvista()
     cells = np.asarray(poly.lines, np.int64)
     counts, ids, i = [], [], 0
@@ -102,4 +103,4 @@ def lines_from_pyvista(poly) -> Lines:
     pdata = {k: np.asarray(poly.point_data[k])[order] for k in pnames if not k.startswith("vtk")}
     ldata = {k: np.asarray(poly.cell_data[k]) for k in cnames
              if len(poly.cell_data[k]) == len(counts)}
-    return Lines(pts, offsets, pdata, ldata, {"source": "pyvista"})
+    return cls(pts, offsets, pdata, ldata, {"source": "pyvista"})

@@ -14,36 +14,19 @@ function's bounds on a length attribute) is a number in the style's own units, o
 
 On an attribute measured in time (``time``), a length is the time the lines need to travel it at
 their median speed.  ``resolve_lengths`` turns every string into a number before drawing.  (The style model
-imports this module to check the strings; it imports the model only where it needs it.)
+checks the strings with length_forms.py, below it; this module builds on the model.)
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
-import re
 from dataclasses import dataclass
 
-METRES = {"m": 1.0, "cm": 0.01, "mm": 1e-3, "km": 1e3}
-KINDS = ("px", "d", "z", *METRES)
+from .length_forms import METRES, parse
+from .style import StyleError, Transfer, WidthMap
+
 LENGTH_ATTRIBUTES = ("arc_length", "distance_to_seed")
 TIME_ATTRIBUTES = ("time",)
-_FORM = re.compile(r"^\s*([0-9.eE+-]+)(?:\s*/\s*([0-9.eE+-]+))?\s*(px|d|z|m|cm|mm|km)\s*$")
-FORMS = ("a number in the style's units, or a string: '2px' (screen pixels), '1/200d' (a fraction "
-         "of the domain diagonal), '0.1z' (a fraction of the scene's depth range) or '0.05 m' "
-         "(world units: m, cm, mm, km)")
-
-
-def parse(text: str) -> tuple[float, str] | None:
-    """``"1/200d"`` -> (0.005, "d"); None when ``text`` is not such a length."""
-    m = _FORM.match(text) if isinstance(text, str) else None
-    if m is None:
-        return None
-    try:
-        value = float(m[1]) / float(m[2]) if m[2] else float(m[1])
-    except (ValueError, ZeroDivisionError):
-        return None
-    return (value, m[3]) if math.isfinite(value) and value >= 0 else None
 
 
 @dataclass(frozen=True)
@@ -58,8 +41,6 @@ class SceneScale:
 
     def world(self, v: float | str, where: str) -> float:
         """The length ``v`` in world units (a number: already world units)."""
-        from .style import StyleError
-
         if not isinstance(v, str):
             return float(v)
         value, kind = parse(v)
@@ -82,8 +63,6 @@ def resolve_lengths(style, scale: SceneScale):
     """``style`` with every relative length (a string) replaced by its number: widths in the
     style's units, depth offsets in world units, shape and pattern lengths and transfer bounds
     in their attribute's units."""
-    from .style import StyleError, Transfer, WidthMap
-
     if not _has_strings(style):
         return style
     pixels = style.units == "pixels"
@@ -136,8 +115,6 @@ def resolve_lengths(style, scale: SceneScale):
 
 
 def _has_strings(style) -> bool:
-    from .style import WidthMap
-
     for ls in style.styles.values():
         for b in ls.bands:
             w = b.width

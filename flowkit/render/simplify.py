@@ -37,8 +37,8 @@ import math
 import numba
 import numpy as np
 
-from ..integrate.threads import run_ranges
 from ..lines import Lines, finite_rows
+from ..threads import run_ranges
 from .style import ColorMap, Style, WidthMap
 
 RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index

@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .camera import FITS, VIEWS, Camera
-from .lengths import FORMS as LENGTH_FORMS
-from .lengths import parse as parse_length
+from .length_forms import FORMS as LENGTH_FORMS
+from .length_forms import parse as parse_length
 from .shapes import SHAPE_NAMES
 
 STYLE_VERSION = 1

@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..integrate.seeds import parse_even_spec, parse_seed_spec
-
 
 def trace_spec(field, spec: str, options=None, *, backend="numba", empty="raise", **kw):
     """Lines of ``field`` from the seed spec ``spec`` (any ``--seeds`` form, ``even`` included);
     ``options``/``kw``/``empty`` as for ``flowkit.trace``."""
+    # (not at the top: importing integrate.seeds runs this __init__ on its way to seeding.errors,
+    # before integrate.seeds has defined these)
+    from ..integrate.seeds import parse_even_spec, parse_seed_spec
     from ..integrate.trace import check_result, resolve_options, trace
     from .even import evenly_spaced
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..fields import curl as _curl
 from ..fields.field import Field
-from ..integrate.seeds import SeedError
+from .errors import SeedError
 from .expr import Expression, ExpressionError
 
 DERIVED = ("speed", "vorticity_magnitude")  # scalars computed from the vector field
