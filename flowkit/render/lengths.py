@@ -13,8 +13,8 @@ function's bounds on a length attribute) is a number in the style's own units, o
   ``length_units`` when they have them.
 
 On an attribute measured in time (``time``), a length is the time the lines need to travel it at
-their median speed.  ``resolve_lengths`` turns every string into a number before drawing.  (The style model
-imports this module to check the strings; it imports the model only where it needs it.)
+their median speed.  ``resolve_lengths`` turns every string into a number before drawing.  (The style checks
+(``style.check``) import this module to check the strings; it imports the style only where it needs it.)
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ class SceneScale:
 
     def world(self, v: float | str, where: str) -> float:
         """The length ``v`` in world units (a number: already world units)."""
-        from .style import StyleError
+        from .style.check import StyleError
 
         if not isinstance(v, str):
             return float(v)
@@ -82,7 +82,8 @@ def resolve_lengths(style, scale: SceneScale):
     """``style`` with every relative length (a string) replaced by its number: widths in the
     style's units, depth offsets in world units, shape and pattern lengths and transfer bounds
     in their attribute's units."""
-    from .style import StyleError, Transfer, WidthMap
+    from .style.check import StyleError
+    from .style.model import Transfer, WidthMap
 
     if not _has_strings(style):
         return style
@@ -136,7 +137,7 @@ def resolve_lengths(style, scale: SceneScale):
 
 
 def _has_strings(style) -> bool:
-    from .style import WidthMap
+    from .style.model import WidthMap
 
     for ls in style.styles.values():
         for b in ls.bands:

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..integrate.threads import run_ranges
 from ..lines import Lines, finite_rows
-from .style import ColorMap, Style, WidthMap
+from .style.model import ColorMap, Style, WidthMap
 
 RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
 VALUE, DISPLACEMENT, MAPPED = 1, 2, 3  # kinds of attribute deviation

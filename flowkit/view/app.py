@@ -42,7 +42,9 @@ from ..render.camera import VIEWS, Camera
 from ..render.context import create_context
 from ..render.legend import drawn_pixels, legend_image, legend_key
 from ..render.renderer import LineRenderer, save_png
-from ..render.style import ColorMap, Range, Style, StyleError, save_style, style_from_dict
+from ..render.style.check import StyleError
+from ..render.style.model import ColorMap, Range, Style
+from ..render.style.toml import save_style, style_from_dict
 from . import orbit
 from .edit import colormapped, get_at, replace_at, with_color_attribute
 from .history import History

@@ -20,7 +20,8 @@ from imgui_bundle import imgui
 
 from ..render.camera import VIEWS
 from ..render.shapes import SHAPE_NAMES
-from ..render.style import ColorMap, known_colormap
+from ..render.style.check import known_colormap
+from ..render.style.model import ColorMap
 from .edit import auto_range, get_at, params
 
 # offered in the colormap combo (any name the cmap package knows works in the file)
