@@ -289,7 +289,6 @@ def _show_band(b: Band) -> str:
     return ", ".join(out)
 
 
-
 def hex_color(c: RGBA) -> str | None:
     """``'#rrggbb'`` (``'#rrggbbaa'`` unless opaque) when every channel is a multiple of 1/255
     (the colour is then exactly that hex colour), else None."""
