@@ -79,16 +79,13 @@ def test_info_errors_are_one_line_naming_the_file(tmp_path, capsys):
     assert rc == 2 and "cut.vti: VTK file is truncated or corrupt" in err and "Traceback" not in err
 
 
-def test_info_on_a_lines_file_delegates(tmp_path, capsys, monkeypatch):
-    from flowkit.io import lines_h5
+def test_info_on_a_lines_file(tmp_path, capsys):
+    from flowkit.io.lines_h5 import write_lines
+    from flowkit.lines import Lines
 
-    with h5py.File(tmp_path / "l.h5", "w") as h:
-        h.attrs["flowkit_format"] = "lines"
-    monkeypatch.setattr(
-        lines_h5, "summary", lambda p: f"LINES SUMMARY OF {Path(p).name}", raising=False
-    )
-    rc, out, _ = run(capsys, "info", str(tmp_path / "l.h5"))
-    assert rc == 0 and out.strip() == "LINES SUMMARY OF l.h5"
+    path = write_lines(Lines(np.zeros((2, 3)) + [[0, 0, 0], [1, 0, 0]], [0, 2]), tmp_path / "l.h5")
+    rc, out, _ = run(capsys, "info", str(path))
+    assert rc == 0 and out.startswith(f"{path}: flowkit lines file") and "lines: 1" in out
 
 
 @pytest.mark.skipif(not SHARED.is_dir(), reason=f"{SHARED} absent (shared data beside the clone)")

@@ -13,8 +13,6 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-import pytest
-
 import flowkit
 
 ROOT = "flowkit"
@@ -45,13 +43,6 @@ LAYERS = (
     ("cli", ("flowkit.cli", "flowkit.__main__", "flowkit.distributed.cli", "flowkit.warmup",
              "flowkit.write_helper_sigs")),
 )
-
-# circles known to be broken elsewhere (by what); each is reported as an expected failure until
-# it is gone
-KNOWN_CIRCLES = {
-    frozenset({"flowkit.view.app", "flowkit.view.panel"}): "the viewer's split into modules",
-}
-
 
 def modules(folder: Path, root: str) -> dict[str, tuple[Path, bool]]:
     """Dotted name -> (file, is a package) for every module of the package in ``folder``."""
@@ -173,16 +164,8 @@ def test_no_module_imports_a_higher_layer():
 
 
 def test_no_import_circle():
-    found = [c for c in circles(GRAPH) if frozenset(c) not in KNOWN_CIRCLES]
+    found = circles(GRAPH)
     assert not found, "import circles:\n" + "\n".join(_describe(c, GRAPH) for c in found)
-
-
-@pytest.mark.parametrize("circle", sorted(KNOWN_CIRCLES, key=sorted),
-                         ids=lambda c: "+".join(sorted(c)))
-@pytest.mark.xfail(strict=True, reason="a known circle: when it is gone, drop it from KNOWN_CIRCLES")
-def test_known_circle_is_gone(circle):
-    assert sorted(circle) not in circles(GRAPH), (
-        f"{_describe(sorted(circle), GRAPH)}\n(to be broken by {KNOWN_CIRCLES[circle]})")
 
 
 def test_the_checks_catch_an_upward_import_and_a_circle(tmp_path):

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import xarray as xr  # the "io" extra, installed by `make test`
 
+from flowkit.cli.info import describe_lines
 from flowkit.integrate.reasons import REASON_NAMES, Reason
 from flowkit.io.atomic import atomic_path
 from flowkit.io.lines_h5 import (
@@ -18,7 +19,6 @@ from flowkit.io.lines_h5 import (
     LinesWriter,
     is_lines_file,
     read_lines,
-    summary,
     write_lines,
 )
 from flowkit.lines import Lines
@@ -356,7 +356,7 @@ def test_reason_codes_are_translated_by_name(tmp_path):
 def test_summary_reports_counts_reasons_ranges_metadata(tmp_path):
     lines = make_lines(LENGTHS)
     lines.line_data["reason"][:] = [0, 0, 7, 1, 1, 7, 1, 3]
-    text = summary(write_lines(lines, tmp_path / "l.h5"))
+    text = describe_lines(write_lines(lines, tmp_path / "l.h5"))
     assert f"lines: {len(lines)}" in text and f"vertices: {lines.n_points}" in text
     assert f"min 0  median {np.median(lines.lengths):g}  max 300" in text
     assert "out_of_domain 2, max_length 3, max_steps 1, seed_outside 2" in text
@@ -364,7 +364,7 @@ def test_summary_reports_counts_reasons_ranges_metadata(tmp_path):
     assert f"[{t.min():.6g}, {t.max():.6g}]" in text
     assert "velocity" in text and "float64 x3" in text
     assert "method = dopri5" in text and "rtol = 1e-08" in text
-    assert summary(write_lines(Lines.empty(), tmp_path / "e.h5")).count("lines: 0") == 1
+    assert describe_lines(write_lines(Lines.empty(), tmp_path / "e.h5")).count("lines: 0") == 1
 
 
 def test_not_a_lines_file_errors(tmp_path):
@@ -380,7 +380,7 @@ def test_not_a_lines_file_errors(tmp_path):
     with h5py.File(plain, "a") as f:
         f.attrs["flowkit_format"] = "field"
     with pytest.raises(LinesFileError, match="'field' file"):
-        summary(plain)
+        describe_lines(plain)
     assert not is_lines_file(plain) and not is_lines_file(text)
     with pytest.raises(FileNotFoundError, match="missing.h5"):
         read_lines(tmp_path / "missing.h5")
@@ -457,7 +457,7 @@ def test_summary_ranges_skip_nan_and_inf(tmp_path):
     lines = make_lines([2, 3])
     lines.point_data["T"][:] = [np.nan, 1.5, np.inf, -2.0, np.nan]
     lines.point_data["time"][:] = np.nan
-    text = summary(write_lines(lines, tmp_path / "l.h5"))
+    text = describe_lines(write_lines(lines, tmp_path / "l.h5"))
     assert "[-2, 1.5]" in text
     time_row = next(ln for ln in text.splitlines() if ln.strip().startswith("time "))
     assert time_row.endswith("[nan, nan]")

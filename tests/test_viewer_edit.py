@@ -388,8 +388,7 @@ def test_read_units(tmp_path):
 
 
 def test_domain_bounds_and_outline_edges():
-    from flowkit.view.app import domain_bounds
-    from flowkit.view.outline import box_edges
+    from flowkit.view.outline import box_edges, domain_bounds
 
     lines = Lines(np.zeros((2, 3)), [0, 2], attrs={"domain_bounds": "0.0 1.0 -2 2 0 0.5"})
     np.testing.assert_array_equal(domain_bounds(lines), [[0, 1], [-2, 2], [0, 0.5]])

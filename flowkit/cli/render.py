@@ -19,7 +19,7 @@ import sys
 import numpy as np
 
 from ..render.camera import VIEWS
-from ..render.style import PLACEMENTS
+from ..render.style.model import PLACEMENTS
 from . import CLIError
 
 
@@ -94,7 +94,7 @@ def run(args) -> int:
     from ..io.lines_h5 import read_lines
     from ..render import LineRenderer, create_context, default_context, load_style, save_png
     from ..render.renderer import check_picture
-    from ..render.style import camera_from_dict
+    from ..render.style.toml import camera_from_dict
 
     size = _size(args.size)
     check_output(args.output)  # before any work (numbered frames go beside it)

@@ -211,7 +211,7 @@ AHEAD = 8
 
 
 # The vectorised sampler: a nogil loop over a range of points, run on ranges by Python threads
-# (integrate/threads.py, as the tracing kernel is) instead of a prange loop, whose parallel
+# (threads.py, as the tracing kernel is) instead of a prange loop, whose parallel
 # gufunc cost seconds of compilation on every fresh machine.  One kernel samples a vector, a
 # scalar or both (the attributes speed and T: each point located once), so one compiles.
 @njit(cache=True, nogil=True)

@@ -447,7 +447,8 @@ def _put_attrs(f: h5py.File, attrs: dict, path) -> None:
         f.attrs["flowkit_json_attrs"] = json.dumps(as_json)
 
 
-def _get_attrs(f: h5py.File) -> dict:
+def file_metadata(f: h5py.File) -> dict:
+    """The run metadata at the root of the open file ``f`` (``Lines.attrs``)."""
     as_json = set(json.loads(f.attrs.get("flowkit_json_attrs", "[]")))
     out = {}
     for key, value in f.attrs.items():
@@ -471,7 +472,7 @@ def read_lines(path, *, attributes=None) -> Lines:
     path = Path(path)
     if isinstance(attributes, str):
         attributes = [attributes]
-    with _open(path) as f:
+    with open_lines(path) as f:
         try:
             return _read(f, path, attributes)
         except OSError as e:
@@ -479,8 +480,8 @@ def read_lines(path, *, attributes=None) -> Lines:
 
 
 def _read(f: h5py.File, path: Path, attributes) -> Lines:
-    vtk = _group(f, "VTKHDF", path)
-    point_names, line_names = _attribute_names(f)
+    vtk = required_group(f, "VTKHDF", path)
+    point_names, line_names = attribute_names(f)
     if attributes is None:
         wanted = set(point_names) | set(line_names)
     else:
@@ -489,20 +490,20 @@ def _read(f: h5py.File, path: Path, attributes) -> Lines:
         if missing:
             raise KeyError(f"{path}: no attribute {sorted(missing)} in this file; it has point "
                            f"attributes {point_names} and line attributes {line_names}")
-    points = _dataset(vtk, "Points", path)[...]
-    offsets = _dataset(vtk, "Lines/Offsets", path)[...]
+    points = required_dataset(vtk, "Points", path)[...]
+    offsets = required_dataset(vtk, "Lines/Offsets", path)[...]
     if offsets.size < 1 or offsets[0] != 0 or offsets[-1] != len(points):
         raise LinesFileError(f"{path}: VTKHDF/Lines/Offsets (length {offsets.size}) does not "
                              f"span the {len(points)} points")
-    row_size = _dataset(f, "rowSize", path)[...]
+    row_size = required_dataset(f, "rowSize", path)[...]
     if not np.array_equal(np.diff(offsets), row_size):
         raise LinesFileError(f"{path}: rowSize disagrees with VTKHDF/Lines/Offsets")
     point_data = {k: vtk["PointData"][k][...] for k in point_names if k in wanted}
     line_data = {k: vtk["CellData"][k][...] for k in line_names if k in wanted}
     for name in ("reason", "reason_backward"):
         if name in line_data:
-            line_data[name] = _current_reason_codes(f, line_data[name], path)
-    attrs = _get_attrs(f)
+            line_data[name] = current_reason_codes(f, line_data[name], path)
+    attrs = file_metadata(f)
     units = _units(f)
     if units:
         attrs["units"] = json.dumps(units)
@@ -523,8 +524,8 @@ def _units(f: h5py.File) -> dict[str, str]:
 def lines_attributes(path) -> list[str]:
     """Names of the point and line attributes a lines file holds (nothing else is read)."""
     path = Path(path)
-    with _open(path) as f:
-        point, line = _attribute_names(f)
+    with open_lines(path) as f:
+        point, line = attribute_names(f)
     return point + line
 
 
@@ -532,15 +533,15 @@ def read_metadata(path) -> dict:
     """The file's metadata (``Lines.attrs``: method, options, source, snapshot time...); nothing
     else is read."""
     path = Path(path)
-    with _open(path) as f:
-        return _get_attrs(f)
+    with open_lines(path) as f:
+        return file_metadata(f)
 
 
 def read_units(path) -> dict[str, str]:
     """The units the file gives (CF ``units`` attributes): ``"position"`` for x, y, z, and each
     point or line attribute that has them; names without units are left out."""
     path = Path(path)
-    with _open(path) as f:
+    with open_lines(path) as f:
         out = _units(f)
         u = f["x"].attrs.get("units") if "x" in f else None
         if u is not None:
@@ -548,17 +549,19 @@ def read_units(path) -> dict[str, str]:
     return out
 
 
-def _attribute_names(f: h5py.File) -> tuple[list[str], list[str]]:
+def attribute_names(f: h5py.File) -> tuple[list[str], list[str]]:
+    """The point and the line attributes of the open file ``f`` (a synthesized seed_id left out)."""
     point = list(f["VTKHDF/PointData"]) if "VTKHDF/PointData" in f else []
     cells = f.get("VTKHDF/CellData", {})
     line = [k for k in cells if _SYNTHESIZED not in cells[k].attrs]
     return point, line
 
 
-def _current_reason_codes(f: h5py.File, codes: np.ndarray, path: Path) -> np.ndarray:
+def current_reason_codes(f: h5py.File, codes: np.ndarray, path: Path) -> np.ndarray:
     """Codes as this flowkit numbers them, translated by name from the file's own table."""
-    table = _dataset(f, "reason_code", path)[...]
-    names = [n.decode() if isinstance(n, bytes) else n for n in _dataset(f, "reason_name", path)]
+    table = required_dataset(f, "reason_code", path)[...]
+    names = [n.decode() if isinstance(n, bytes) else n
+             for n in required_dataset(f, "reason_name", path)]
     current = {r.label: r.value for r in Reason}
     unknown = sorted(set(names) - set(current))
     if unknown:
@@ -573,8 +576,9 @@ def _current_reason_codes(f: h5py.File, codes: np.ndarray, path: Path) -> np.nda
     return np.array([lookup[c] for c in codes.tolist()], codes.dtype)
 
 
-class _open:
-    """Open ``path`` as a flowkit lines file this version can read, or raise a clear error."""
+class open_lines:
+    """Open ``path`` as a flowkit lines file this version can read, or raise a clear error
+    (``with open_lines(path) as f``: the h5py.File)."""
 
     def __init__(self, path: Path):
         if not path.exists():
@@ -617,14 +621,16 @@ def _check_format(f: h5py.File, path: Path) -> None:
                              f"(this flowkit reads version {FORMAT_VERSION})")
 
 
-def _group(f, name, path) -> h5py.Group:
+def required_group(f, name, path) -> h5py.Group:
+    """Group ``name`` of the open lines file ``f``, or a LinesFileError naming ``path``."""
     g = f.get(name)
     if not isinstance(g, h5py.Group):
         raise LinesFileError(f"{path}: group '{name}' is missing")
     return g
 
 
-def _dataset(g, name, path) -> h5py.Dataset:
+def required_dataset(g, name, path) -> h5py.Dataset:
+    """Dataset ``name`` of group ``g``, or a LinesFileError naming ``path``."""
     ds = g.get(name)
     if not isinstance(ds, h5py.Dataset):
         raise LinesFileError(f"{path}: dataset '{g.name.rstrip('/')}/{name}' is missing")
@@ -641,71 +647,3 @@ def is_lines_file(path) -> bool:
     except OSError:
         return False
     return (fmt.decode() if isinstance(fmt, bytes) else fmt) == FORMAT_NAME
-
-
-# -- summary (`flowkit info lines.h5`) ----------------------------------------------------------
-
-def summary(path) -> str:
-    """What ``flowkit info`` prints for a lines file; reads attributes block by block."""
-    path = Path(path)
-    with _open(path) as f:
-        try:
-            return _summary(f, path)
-        except OSError as e:
-            raise LinesFileError(f"{path}: cannot read the data (truncated or corrupt file?): {e}")
-
-
-def _summary(f: h5py.File, path: Path) -> str:
-    vtk = _group(f, "VTKHDF", path)
-    counts = _dataset(f, "rowSize", path)[...]
-    n_points = _dataset(vtk, "Points", path).shape[0]
-    out = [(f"{path}: flowkit lines file (format version {int(f.attrs['flowkit_format_version'])}"
-           f", {f.attrs['Conventions']} trajectories + VTKHDF "
-           f"{'.'.join(str(v) for v in vtk.attrs['Version'])} PolyData)"),
-           f"  lines: {counts.size}   vertices: {n_points}   positions: {vtk['Points'].dtype}"]
-    if counts.size:
-        out.append(f"  vertices per line: min {counts.min()}  median {np.median(counts):g}  "
-                   f"max {counts.max()}")
-        out.append("  bounds: " + "  ".join(
-            f"{a} [{lo:.6g}, {hi:.6g}]" for a, (lo, hi) in zip("xyz", _ranges(vtk["Points"]))))
-    point_names, line_names = _attribute_names(f)
-    for name, title in (("reason", "reasons"), ("reason_backward", "reasons backward")):
-        if name in line_names:  # direction both: the forward half's, then the backward half's
-            reasons = _current_reason_codes(f, vtk[f"CellData/{name}"][...], path)
-            codes, n = np.unique(reasons, return_counts=True)
-            out.append(f"  {title}: " + ", ".join(
-                f"{Reason(c).label} {k}" for c, k in zip(codes.tolist(), n.tolist())))
-    for title, group, names in (("point", vtk.get("PointData"), point_names),
-                                ("line", vtk.get("CellData"), line_names)):
-        if names:
-            out.append(f"  {title} attributes:")
-        for name in names:
-            ds = group[name]
-            kind = f"{ds.dtype}" + (f" x{ds.shape[1]}" if ds.ndim > 1 else "")
-            rng = _ranges(ds)
-            if ds.shape[0] == 0:
-                text = "(empty)"
-            elif ds.ndim > 1:
-                text = "  ".join(f"[{lo:.6g}, {hi:.6g}]" for lo, hi in rng)
-            else:
-                text = f"[{rng[0][0]:.6g}, {rng[0][1]:.6g}]"
-            u = ds.attrs.get("units")
-            u = f"  {u.decode() if isinstance(u, bytes) else u}" if u is not None else ""
-            out.append(f"    {name:<22} {kind:<12} {text}{u}")
-    meta = _get_attrs(f)
-    if meta:
-        out.append("  metadata:")
-        out += [f"    {k} = {v}" for k, v in meta.items()]
-    return "\n".join(out)
-
-
-def _ranges(ds: h5py.Dataset, block: int = 1 << 20) -> list[tuple[float, float]]:
-    """Per-column [nanmin, nanmax] of a (n,) or (n, k) dataset, reading ``block`` rows at a time."""
-    k = ds.shape[1] if ds.ndim > 1 else 1
-    lo, hi = np.full(k, np.inf), np.full(k, -np.inf)
-    for start in range(0, ds.shape[0], block):
-        a = ds[start:start + block].reshape(-1, k).astype(np.float64)
-        a[~np.isfinite(a)] = np.nan  # fmin/fmax skip NaN: the range of the finite values
-        lo = np.fmin(lo, np.fmin.reduce(a, axis=0, initial=np.inf))
-        hi = np.fmax(hi, np.fmax.reduce(a, axis=0, initial=-np.inf))
-    return [(a, b) if a <= b else (np.nan, np.nan) for a, b in zip(lo, hi)]

@@ -19,7 +19,7 @@ import numpy as np
 from ..io.atomic import atomic_path
 from .camera import Camera
 from .renderer import LineRenderer, save_png
-from .style import Style
+from .style.model import Style
 
 FORMATS = (".png", ".gif", ".mp4")
 

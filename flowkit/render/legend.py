@@ -25,7 +25,7 @@ import numpy as np
 
 from ..fields.field import date_of
 from .colormaps import colormap_lut
-from .style import ColorMap, Style, WidthMap
+from .style.model import ColorMap, Style, WidthMap
 
 Box = tuple[int, int, int, int]  # x0, y0, x1, y1 (pixels, y down, x1/y1 exclusive)
 

@@ -23,7 +23,8 @@ import dataclasses
 from dataclasses import dataclass
 
 from .length_forms import METRES, parse
-from .style import StyleError, Transfer, WidthMap
+from .style.check import StyleError
+from .style.model import Transfer, WidthMap
 
 LENGTH_ATTRIBUTES = ("arc_length", "distance_to_seed")
 TIME_ATTRIBUTES = ("time",)

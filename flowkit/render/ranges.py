@@ -9,7 +9,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .style import Band, ColorMap, Range, Style, StyleError, WidthMap, percentiles
+from .style.check import StyleError, percentiles
+from .style.model import Band, ColorMap, Range, Style, WidthMap
 
 CLIP = 0.05  # a fixed range leaving more of the data outside is reported
 

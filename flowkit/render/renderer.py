@@ -52,7 +52,9 @@ from .simplify import (
     slopes,
     split_by_range,
 )
-from .style import Range, Style, StyleError, load_style
+from .style.check import StyleError
+from .style.model import Range, Style
+from .style.toml import load_style
 
 TOLERANCE = 0.25  # level-of-detail tolerance on software rasterizers, output pixels
 LOD_KEPT = 4  # style importances kept (a world-unit width map's tolerance follows the zoom)
@@ -750,7 +752,7 @@ def default_style(attributes) -> Style:
     set back by 2 % of the scene's depth range (so a line cuts those well behind it, in a room
     or a thin cavity alike), the core coloured by speed over its data range (viridis) when the
     lines have ``speed``, else white."""
-    from .style import Band, ColorMap, LineStyle
+    from .style.model import Band, ColorMap, LineStyle
 
     core = ColorMap("viridis", "speed") if "speed" in attributes else (1.0, 1.0, 1.0, 1.0)
     bands = (Band(core, 2.5), Band((0.0, 0.0, 0.0, 1.0), 1.5, depth_offset="1/50z"))

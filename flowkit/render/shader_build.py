@@ -17,7 +17,7 @@ import moderngl
 
 from .colormaps import TEXELS, _ctx_store, colormap_texture
 from .shapes import CURVE_SIZE, PEAKS, SHAPE_NAMES, SHAPES, ShapeCurve, curve_texture
-from .style import ColorMap, Style, WidthMap
+from .style.model import ColorMap, Style, WidthMap
 
 BIG = 3.0e38  # an infinite transfer bound as a float32 uniform
 

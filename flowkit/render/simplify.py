@@ -39,7 +39,7 @@ import numpy as np
 
 from ..lines import Lines, finite_rows
 from ..threads import run_ranges
-from .style import ColorMap, Style, WidthMap
+from .style.model import ColorMap, Style, WidthMap
 
 RESTART = 0xFFFFFFFF  # moderngl enables primitive restart with this index
 VALUE, DISPLACEMENT, MAPPED = 1, 2, 3  # kinds of attribute deviation
@@ -263,7 +263,7 @@ def _deviation(v, dv, s, i, j, m, kind, vtol, L, d, a, b):
     return err / abs(dv[m])
 
 
-# The per-run loops run on threads over ranges of runs (integrate/threads.py), as the tracing
+# The per-run loops run on threads over ranges of runs (threads.py), as the tracing
 # kernel does, not in prange loops: numba builds and optimises a parallel gufunc around each
 # prange loop, seconds of compilation on every fresh machine for work that is the same either
 # way (runs are independent, and each range writes only its own runs' entries).

@@ -59,18 +59,9 @@ from ..integrate.options import OptionsError, TraceOptions
 from ..integrate.seeds import CHECK_ONLY, FILE_TYPES, SeedError, parse_even_spec, parse_seed_spec
 from ..render.animate import FORMATS as ANIMATION_FORMATS
 from ..render.camera import Camera
-from ..render.style import (
-    STYLE_VERSION,
-    Style,
-    StyleError,
-    _check_keys,
-    _fail,
-    _name,
-    _number,
-    camera_from_dict,
-    load_style,
-    style_from_dict,
-)
+from ..render.style.check import StyleError, _fail, _name, _number
+from ..render.style.model import STYLE_VERSION, Style
+from ..render.style.toml import _check_keys, camera_from_dict, load_style, style_from_dict
 
 SCENE_VERSION = 1
 DATASETS = ("hotroom",)

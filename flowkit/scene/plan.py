@@ -19,7 +19,7 @@ from ..fields.readers import SnapshotRef, load_field, load_series
 from ..integrate.attributes import ATTRIBUTES
 from ..integrate.options import TraceOptions
 from ..integrate.seeds import parse_even_spec, parse_seed_spec
-from ..render.style import ColorMap
+from ..render.style.model import ColorMap
 from .model import Scene, SceneError, snapshot_selection
 
 # per-line data every traced line carries anyway: a style may read it at no tracing cost

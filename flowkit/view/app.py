@@ -1,6 +1,12 @@
 """The viewer: one glfw window, a moderngl context on it, LineRenderer drawing the scene into its
 offscreen target (blitted to the window), a Dear ImGui panel over it, the style file polled.
 
+``Viewer`` is the window and its loop; its parts hold the rest: the style session
+(``session.StyleSession``: the style file, edits, undo), the live rake (``seeding.LiveRake``),
+the overlays (``overlay.SceneOverlays``), the panel (``panel.Panel``) and the probe's picker
+(``probe.Picker``).  The viewer's methods and attributes of those parts (``edit``, ``undo``,
+``style``, ``grab``, ``rake``...) are theirs, reached through the window.
+
 ``Viewer.step()`` runs one frame: events, style file, panel, scene (redrawn only when the style,
 camera, outline or viewport changed), overlays (axes, legend, probe), panel, swap.  ``run``
 calls it only when something happened (input, a window event, a style file change, a text field
@@ -11,23 +17,12 @@ what tests call.
 The scene's viewport is the window right of the panel (the whole window with the panel hidden).
 The camera is fitted to it once (on open, R, a named view, a new camera in the style file) and
 pinned (``orbit.pinned``), so orbiting, zooming and panning keep the scale.
-
-Style updates: a new style whose template flags equal the current ones only changes uniforms;
-other flags select (and, the first time, compile) another program.  ``updates`` counts both.
-
-Live seeding (``seeding``, a ``LiveSeeding``: a field, trace options, a rake): the rake is an
-overlay whose handles a left drag moves; when the rake has changed, the next frame traces its
-seeds again and draws the new lines (while dragging too, as long as re-trace and redraw take
-at most ``LIVE_SECONDS``, the median of the last ``LIVE_FRAMES``; else on release).  Nothing
-is traced while the rake stays put.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import sys
 import time
-import tomllib
 from pathlib import Path
 from typing import ClassVar
 
@@ -40,69 +35,25 @@ import moderngl  # isort: skip
 from ..lines import Lines
 from ..render.camera import VIEWS, Camera
 from ..render.context import create_context
-from ..render.legend import drawn_pixels, legend_image, legend_key
 from ..render.renderer import LineRenderer, save_png
-from ..render.style import ColorMap, Range, Style, StyleError, save_style, style_from_dict
+from ..render.style.check import StyleError
+from ..render.style.model import Range, Style
 from . import orbit
-from .edit import colormapped, get_at, replace_at, with_color_attribute
-from .history import History
-from .outline import Outline
-from .overlay import OverlayLayer, axes_image, ring_image, text_image
-from .panel import PANEL_WIDTH, Panel, imgui_key
+from .outline import Outline, domain_bounds
+from .overlay import SceneOverlays
+from .panel import Panel, imgui_key
 from .probe import Picker, describe
-from .rake import Rake, drag_point, handle_at, project, rake_image
-from .seeding import LiveSeeding
+from .rake import Rake
+from .seeding import LiveRake, LiveSeeding
+from .session import StyleSession, read_style, unreadable
 from .watch import FileWatch
 
 IDLE_POLL = 0.25  # s between style file polls while nothing happens
 WAKE_FRAMES = 3  # frames drawn after an event (ImGui settles hover and active states)
-MARGIN = 8  # px between overlays and the scene's edges
-LEGEND_TEXT_PX = 14  # the legend's text size (times the HiDPI scale), near the panel's
-LIVE_SECONDS = 0.1  # re-trace while dragging the rake while re-trace + redraw take <= this
-LIVE_FRAMES = 5  # ... as the median of the last this many
 
 
 class ViewerError(RuntimeError):
     """No window could be opened (no display, no OpenGL 3.3); the message says what to do."""
-
-
-def read_style(path: Path) -> tuple[Style, str]:
-    """The Style of a TOML file and its text (what "save" keeps: comments, order, spelling)."""
-    try:
-        text = path.read_text(encoding="utf-8")
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise StyleError(f"{path}: not valid TOML: {e}") from None
-    except UnicodeDecodeError as e:
-        raise StyleError(f"{path}: not UTF-8 text: {e}") from None
-    return style_from_dict(data, where=str(path)), text
-
-
-def unreadable(lines: Lines, style: Style) -> str | None:
-    """Why ``lines`` cannot be drawn with ``style`` (an attribute they lack), or None."""
-    have = lines.point_data
-    for a in style.attributes():
-        if a in have and np.ndim(have[a]) != 1:
-            return (f"attribute '{a}' has shape {np.shape(have[a])}; a style can only map "
-                    "scalar (one value per vertex) attributes")
-        if a not in have and a not in lines.line_data:
-            names = sorted(have) + sorted(lines.line_data)
-            return (f"the style reads attribute '{a}', which these lines do not have; "
-                    f"available: {', '.join(names) or 'none'}")
-    return None
-
-
-def domain_bounds(lines: Lines) -> np.ndarray | None:
-    """The field's box (3, 2) that the lines were traced in, where their file records it
-    (``domain_bounds``: six numbers, as text or an array), else None."""
-    value = lines.attrs.get("domain_bounds")
-    if value is None:
-        return None
-    try:
-        b = np.asarray(value.split() if isinstance(value, str) else value, float).reshape(3, 2)
-    except ValueError:
-        return None  # not six numbers: the lines' own box instead
-    return b if np.all(np.isfinite(b)) and np.all(b[:, 1] >= b[:, 0]) else None
 
 
 def _init_glfw() -> None:
@@ -113,6 +64,11 @@ def _init_glfw() -> None:
         why = errors[-1] if errors else "glfw.init() failed"
         raise ViewerError(f"cannot open a window: {why}. The viewer needs a display: set DISPLAY, "
                           "or run it under a virtual one (xvfb-run flowkit view ...)")
+
+
+def _of(part: str, name: str) -> property:
+    """``Viewer.<name>``: the viewer's part ``<part>``'s ``<name>`` (state or method)."""
+    return property(lambda self: getattr(getattr(self, part), name), doc=f"``{part}.{name}``")
 
 
 class Viewer:
@@ -156,26 +112,20 @@ class Viewer:
         # with a field: its box frames the view, so lines traced again keep the camera
         self._bounds = None if seeding is None else np.asarray(seeding.bounds, float)
         self.renderer = LineRenderer(lines, self.ctx, tolerance=tolerance, bounds=self._bounds)
-        self.overlays = OverlayLayer(self.ctx)
+        self.overlays = SceneOverlays(self.ctx)
         self.outline_bounds = domain_bounds(lines) if seeding is None else self._bounds
         if self.outline_bounds is None:
             self.outline_bounds = self.renderer.bounds
         self.outline = Outline(self.ctx, self.outline_bounds)
         self.picker = Picker(lines.points)  # its index builds in a thread
-        self.history = History()
         self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else Path.cwd()
 
-        self.style = self.file_style = style  # in effect / last good from the file
-        self.source = text  # the file's text: save_style keeps its comments and layout
-        self.flags = self._flags(style)
+        self.message = ""
+        self.session = StyleSession(self.style_path, style, text, self.renderer,
+                                    view=lambda: (self.camera, self.scene_size),
+                                    follow=self._follow, wake=self.wake, say=self._say)
         self.home_camera = camera  # R's camera (None: the style's)
         self._camera, self._fit = style.camera, camera or style.camera  # fitted at first frame
-        self.updates = {"uniforms": 0, "recompile": 0}
-        self.last_update: str | None = None
-        self.error: str | None = None  # shown in the panel until a good style replaces it
-        self.message = ""
-        self.color_attributes = sorted(k for k, v in lines.point_data.items() if np.ndim(v) == 1)
-        self._resolved: tuple[Style | None, Style] = (None, style)
         self.size = glfw.get_framebuffer_size(self.window)
         self.frame_time = self.scene_time = 0.0
         self.frames = self.scene_draws = 0
@@ -189,23 +139,15 @@ class Viewer:
         self.show_legend = style.legend.show
         self.show_outline = False
         self.show_panel = True
+        self.show_rake = seeding is not None
         self.probe_on_hover = True
-        self.panel_width = PANEL_WIDTH  # framebuffer pixels, as the panel last drew itself
         self.scene_origin = 0  # x of the scene's viewport in the window
         self.scene_size = self.size
         self.probe: int | None = None  # the probed vertex
         self.probe_pinned = False
         self._hover: tuple[float, float] | None = None  # scene pixels
         self._probe_key = None
-        self._overlay_keys: dict[str, object] = {}
-        # live seeding: the rake, the rake the lines shown come from, the handle being dragged
-        self.rake: Rake | None = None if seeding is None else seeding.rake
-        self._traced_rake = self.rake
-        self._handle: str | None = None
-        self.show_rake = seeding is not None
-        self.reseed_time = self.trace_time = 0.0  # s: last re-trace + redraw, its trace
-        self._reseed_times: list[float] = []  # the last LIVE_FRAMES re-trace + redraw times
-        self.retraces = 0
+        self.live = LiveRake(seeding)  # the rake and the lines traced from it
         self._lines_gen = 0  # counts set_lines (part of the scene's key)
         self._wake = WAKE_FRAMES
         self._last = time.perf_counter()
@@ -222,168 +164,42 @@ class Viewer:
         """Draw the next ``frames`` frames (``run`` sleeps otherwise)."""
         self._wake = max(self._wake, frames)
 
-    # -- style ------------------------------------------------------------------------------------
-    def _flags(self, style: Style):
-        """The template flags the renderer draws ``style`` with (compiled if new)."""
-        with self.ctx:
-            return self.renderer.prepare(self.renderer.resolve(style))[0]  # (lengths as numbers)
+    # -- style: the session's, and what a new style changes in the window -------------------------
+    style = _of("session", "style")
+    file_style = _of("session", "file_style")
+    source = _of("session", "source")
+    flags = _of("session", "flags")
+    history = _of("session", "history")
+    updates = _of("session", "updates")
+    last_update = _of("session", "last_update")
+    error = _of("session", "error")
+    resolved = _of("session", "resolved")
+    color_attributes = _of("session", "color_attributes")
+    set_style = _of("session", "set_style")
+    reload = _of("session", "reload")
+    apply = _of("session", "apply")
+    undo = _of("session", "undo")
+    redo = _of("session", "redo")
+    edit = _of("session", "edit")
+    save_style = _of("session", "save_style")
+    cycle_color_attribute = _of("session", "cycle_color_attribute")
+    color_map = _of("session", "color_map")
+    set_color_range = _of("session", "set_color_range")
 
-    def _report(self, message: str) -> None:
-        if message != self.error:
-            print(f"flowkit view: {message}", file=sys.stderr, flush=True)
-        self.error = message
+    def _follow(self, old: Style, new: Style) -> None:
+        """A new style in effect: the file moved the camera, follow it; and its legend switch."""
+        if new.camera != old.camera:
+            self.fit_camera(new.camera)
+        if new.legend.show != old.legend.show:
+            self.show_legend = new.legend.show
 
-    def set_style(self, style: Style) -> str | None:
-        """Make ``style`` current: "uniforms" (same template flags), "recompile" (other flags),
-        "unchanged", or None when it cannot be drawn (the error is reported, the current style
-        stays)."""
-        problem = unreadable(self.lines, style)
-        if problem is not None:
-            self._report(problem)
-            return None
-        if style == self.style:
-            self.error = None
-            return "unchanged"
-        try:  # the renderer's own flags; a new set compiles here: a failure keeps the old style
-            flags = self._flags(style)
-        except moderngl.Error as e:
-            self._report(f"shader build failed: {e}")
-            return None
-        self.error = None
-        kind = "uniforms" if flags == self.flags else "recompile"
-        if style.camera != self.style.camera:  # the file moved the camera: follow it
-            self.fit_camera(style.camera)
-        if style.legend.show != self.style.legend.show:  # and its legend switch
-            self.show_legend = style.legend.show
-        self.style, self.flags = style, flags
-        self.updates[kind] += 1
-        self.last_update = kind
-        return kind
-
-    def reload(self) -> str | None:
-        """Read the style file again; on any error keep the current style and report it."""
-        try:
-            style, text = read_style(self.style_path)
-        except (StyleError, OSError) as e:
-            self._report(str(e))
-            return None
-        kind = self.set_style(style)
-        if kind is not None:
-            self.file_style, self.source = style, text
-        if kind in ("uniforms", "recompile"):  # the file is the source: earlier edits are gone
-            self.history.clear()
-        self.wake()
-        return kind
-
-    def apply(self, style: Style, key=None, merge: bool = False) -> str | None:
-        """A user's edit (panel, C, colour range): ``set_style`` and an undo step; ``merge``
-        continues the last step when it had the same ``key`` (one widget being dragged)."""
-        before = self.style
-        kind = self.set_style(style)
-        if kind in ("uniforms", "recompile"):
-            self.history.record(before, key, merge)
-        self.wake()
-        return kind
-
-    def undo(self) -> str | None:
-        """Back to the style before the last edit (exactly: styles are kept whole)."""
-        return self._history_step(self.history.undo)
-
-    def redo(self) -> str | None:
-        return self._history_step(self.history.redo)
-
-    def _history_step(self, move) -> str | None:
-        style = move(self.style)
-        if style is None:
-            self.message = "nothing to " + move.__name__
-            return None
-        n_undo, n_redo = self.history.counts
-        self.message = f"{move.__name__}: {n_undo} undo, {n_redo} redo steps left"
-        self.wake()
-        return self.set_style(style)
-
-    def edit(self, path: tuple, value, merge: bool = False) -> str | None:
-        """Set one style parameter (what a panel widget does); see ``set_style``.  ``merge``:
-        the widget is still being dragged, so this continues the last undo step."""
-        try:
-            style = replace_at(self.style, path, value)
-        except StyleError as e:
-            self._report(str(e))
-            return None
-        return self.apply(style, key=path, merge=merge)
-
-    def save_style(self, path=None) -> Path:
-        """Write the style in effect as TOML (atomically), in the style file's own text with the
-        edited values replaced (comments and layout kept; see ``render.style.save_style``)."""
-        path = Path(path) if path is not None else self.style_path
-        save_style(self.style, path, keep=self.source)  # unedited: the file as it is
-        self.message = f"saved {path}"
-        return path
+    def _say(self, message: str) -> None:
+        self.message = message
 
     def value_range(self, name: str, spec: Range = None) -> tuple[float, float]:
         """The range ``spec`` (None: min..max, "pA..pB": percentiles) of attribute ``name`` over
         the lines: what an automatic range of the style resolves to."""
         return self.renderer.value_range(name, spec)
-
-    @property
-    def resolved(self) -> Style:
-        """The style in effect with its automatic ranges as numbers: what is drawn, what the
-        panel's range fields and the legend show."""
-        if self._resolved[0] is not self.style:
-            self._resolved = (self.style, self.renderer.resolve(self.style, self.camera,
-                                                                self.scene_size))
-        return self._resolved[1]
-
-    def cycle_color_attribute(self) -> str | None:
-        """Colour-mapped colours read the next scalar point attribute, over its data range (a
-        percentile range stays: it holds for any attribute)."""
-        paths = colormapped(self.style)
-        names = self.color_attributes
-        if not paths or not names:
-            self.message = ("no colour-mapped band to cycle" if not paths
-                            else "the lines have no scalar point attribute")
-            return None
-        current = get_at(self.style, paths[0]).attribute
-        name = names[(names.index(current) + 1) % len(names)] if current in names else names[0]
-        self.apply(with_color_attribute(self.style, name))
-        lo, hi = self.color_map(resolved=True).range
-        self.message = f"colour: {name} over [{lo:.4g}, {hi:.4g}]"
-        return name
-
-    def color_map(self, resolved: bool = False) -> ColorMap | None:
-        """The first colour-mapped colour (what the legend's first bar and the panel show), as
-        the style gives it or ``resolved`` (its range as numbers); None when there is none."""
-        paths = colormapped(self.style)
-        return get_at(self.resolved if resolved else self.style, paths[0]) if paths else None
-
-    def _data_range_spec(self, path: tuple) -> Range:
-        """The automatic range "data range" gives the map at ``path``: the style file's
-        percentile range there (for the same attribute), else None (min to max)."""
-        try:
-            f = get_at(self.file_style, path)
-        except (KeyError, IndexError, AttributeError):
-            return None
-        same = isinstance(f, ColorMap) and f.attribute == get_at(self.style, path).attribute
-        return f.range if same and isinstance(f.range, str) else None
-
-    def set_color_range(self, value_range=None, merge: bool = False) -> str | None:
-        """Every colour-mapped colour of the shown attribute over ``value_range``, or with None
-        over the attribute's data range, automatic again (``_data_range_spec``): a saved style
-        then leaves the range to the data instead of freezing today's numbers."""
-        cm = self.color_map()
-        if cm is None:
-            return None
-        style = self.style
-        for path in colormapped(style):
-            if get_at(style, path).attribute == cm.attribute:
-                r = (self._data_range_spec(path) if value_range is None
-                     else tuple(float(v) for v in value_range))
-                try:
-                    style = replace_at(style, path + ("range",), r)
-                except StyleError as e:
-                    self._report(str(e))
-                    return None
-        return self.apply(style, key="colour range", merge=merge)
 
     # -- camera and keys --------------------------------------------------------------------------
     @property
@@ -420,7 +236,7 @@ class Viewer:
     def on_drag(self, dx: float, dy: float, button: int = 0, mods: int = 0) -> None:
         """Left drag orbits (or moves the rake handle grabbed by ``grab``); right or middle
         drag (or shift + left) pans.  Pixels, y down."""
-        if self._handle is not None:
+        if self.live.handle is not None:
             self.drag_handle(dx, dy)
         elif button == glfw.MOUSE_BUTTON_LEFT and not mods & glfw.MOD_SHIFT:
             self.camera = orbit.orbit(self.camera, dx, dy)
@@ -468,7 +284,7 @@ class Viewer:
         if what == "probe" and not self.probe_on_hover and not self.probe_pinned:
             self.probe = None
         if what == "rake":
-            self._handle = None
+            self.live.handle = None
         self.wake()
 
     def on_key(self, key: int, action: int = glfw.PRESS, mods: int = 0) -> None:
@@ -504,68 +320,65 @@ class Viewer:
                 self.message = ("no live seeding: open a scene (flowkit view --scene FILE) to "
                                 "seed from a rake")
             elif key == glfw.KEY_T:
-                self.set_rake(self.rake.as_kind("plane" if self.rake.kind == "line" else "line",
-                                                self.seeding.decimals))
+                rake = self.live.rake
+                self.set_rake(rake.as_kind("plane" if rake.kind == "line" else "line",
+                                           self.seeding.decimals))
             elif key == glfw.KEY_W:
                 self.save_seeds()
             else:
-                self.set_rake(self.rake.more(self._COUNT_KEYS[key]))
+                self.set_rake(self.live.rake.more(self._COUNT_KEYS[key]))
 
-    # -- live seeding -----------------------------------------------------------------------------
+    # -- live seeding: the rake's -----------------------------------------------------------------
+    rake = _of("live", "rake")
+    retraces = _of("live", "retraces")
+    reseed_time = _of("live", "reseed_time")
+    trace_time = _of("live", "trace_time")
+    live_time = _of("live", "live_time")
+
     def _setup(self):
         """The camera's setup on the scene's viewport (what the scene is drawn with)."""
         return self.camera.setup(self.renderer.bounds, *self.scene_size)
 
     def handle_at(self, x: float, y: float) -> str | None:
         """The rake handle at scene pixel (x, y) (within ``rake.GRAB_PX``), or None."""
-        if self.rake is None or not self.show_rake:
+        if not self.show_rake:
             return None
-        return handle_at(self.rake, self._setup(), self.scene_size, x, y)
+        return self.live.handle_at(self._setup(), self.scene_size, x, y)
 
     def handle_xy(self, name: str) -> tuple[float, float]:
         """Scene pixel (x, y) of rake handle ``name``."""
-        x, y = project(self._setup(), self.scene_size, self.rake.handles()[name])[0][0]
-        return float(x), float(y)
+        return self.live.handle_xy(self._setup(), self.scene_size, name)
 
     def grab(self, x: float, y: float) -> str | None:
         """Start dragging the rake handle at scene pixel (x, y) (a left press there); its name,
         or None when there is none (the press then orbits)."""
-        self._handle = self.handle_at(x, y)
+        self.live.handle = self.handle_at(x, y)
         self.wake()
-        return self._handle
+        return self.live.handle
 
     def drag_handle(self, dx: float, dy: float) -> None:
         """Move the grabbed handle with the mouse (pixels, y down), parallel to the screen,
         inside the field's box."""
-        to = drag_point(self._setup(), self.rake.handles()[self._handle], dx, dy)
-        self.set_rake(self.rake.moved(self._handle, to, self.seeding.bounds,
-                                      self.seeding.decimals))
+        self.set_rake(self.live.dragged(self._setup(), dx, dy))
 
     def release(self) -> None:
         """Let the handle go: the next frame traces the rake if it was not traced while
         dragging."""
-        self._handle = None
+        self.live.handle = None
         self.wake()
 
     def set_rake(self, rake: Rake) -> None:
         """A new rake (seeds, shape or count): traced at the next frame (while a handle is
-        dragged, only when that keeps up, see ``LIVE_SECONDS``)."""
-        if rake != self.rake:
-            self.rake = rake
+        dragged, only when that keeps up, see ``seeding.LIVE_SECONDS``)."""
+        if rake != self.live.rake:
+            self.live.rake = rake
             self.message = f"rake: {rake.n_seeds} seeds ({rake.spec()})"
         self.wake()
 
     def retrace(self) -> Lines:
         """Trace the rake's seeds (``LiveSeeding.trace``: the scene's call and options) and
         show the lines."""
-        t0 = time.perf_counter()
-        lines = self.seeding.trace(self.rake)
-        self.trace_time = time.perf_counter() - t0
-        self._traced_rake = self.rake
-        self.seeding.source = None
-        self.set_lines(lines)
-        self.retraces += 1
-        return lines
+        return self.live.trace(self.set_lines)
 
     def set_lines(self, lines: Lines) -> None:
         """Show ``lines`` (with the same attributes) instead: the renderer takes their geometry
@@ -578,35 +391,15 @@ class Viewer:
         self.lines = lines
         self.picker = Picker(lines.points, start=False)  # built when first asked for
         self.probe, self.probe_pinned = None, False
-        self._resolved = (None, self.style)
-        self.flags = self._flags(self.style)  # linear attributes may differ
+        self.session.lines_changed()  # linear attributes may differ
         self._lines_gen += 1
         self.invalidate()
-
-    def _update_seeding(self) -> bool:
-        """Trace the rake if it changed since its lines were traced (while dragging, only when
-        the last re-trace kept up); True when it did."""
-        if self.seeding is None or self.rake == self._traced_rake:
-            return False
-        if self._handle is not None and self.live_time() > LIVE_SECONDS:
-            return False
-        self.retrace()
-        return True
-
-    def live_time(self) -> float:
-        """The median of the last ``LIVE_FRAMES`` re-trace + redraw times (s; 0 before the
-        first): a drag traces at every frame while it is at most ``LIVE_SECONDS``, so that one
-        slow frame (another process on the cores) does not stop the lines following."""
-        t = sorted(self._reseed_times)
-        return 0.0 if not t else t[len(t) // 2]
 
     def save_seeds(self, path=None) -> Path:
         """Write the rake's seed spec (what ``flowkit trace --seeds`` and a scene's ``[seeds]
         spec`` take) atomically to ``path`` (default ``seeding.save_to``, beside the scene),
         and print where."""
-        path = self.seeding.save(self.rake, path)
-        spec = self.rake.spec()
-        print(f"flowkit view: saved seeds to {path}: {spec}", flush=True)
+        path = self.live.save(path)
         self.message = f"saved seeds to {path}"
         return path
 
@@ -689,7 +482,7 @@ class Viewer:
                 self.grab(*self._scene_xy(*self._cursor))
         elif action == glfw.RELEASE and button == self._drag:
             self._drag = None
-            if self._handle is not None:
+            if self.live.handle is not None:
                 self.release()
             elif button == glfw.MOUSE_BUTTON_LEFT and self._cursor == self._press and self._cursor:
                 self.probe_at(*self._scene_xy(*self._cursor))  # a click pins (or clears) it
@@ -745,80 +538,29 @@ class Viewer:
         self._scene_key = None
         self.wake(1)
 
-    def _overlay(self, name: str, key, make, place) -> None:
-        """Overlay ``name`` with the image ``make()`` (made again only when ``key`` changes) at
-        ``place(w, h)``; ``key`` None removes it."""
-        if key is None:
-            self.overlays.remove(name)
-            self._overlay_keys.pop(name, None)
-            return
-        o = self.overlays.overlays.get(name)
-        image = o.image if o is not None and self._overlay_keys.get(name) == key else make()
-        self._overlay_keys[name] = key
-        h, w = image.shape[:2]
-        self.overlays.set(name, image, place(w, h))
-
     def _update_overlays(self, retraced: bool = False) -> None:
-        sw, sh = self.scene_size
-        setup = self.camera.setup(self.renderer.bounds, sw, sh)
-        view = np.round(setup.view[:3, :3], 4)
-        self._overlay("axes", view.tobytes() if self.show_axes else None,
-                      lambda: axes_image(view), lambda w, h: (MARGIN, sh - h - MARGIN))
-        self._update_legend()
-        self._update_probe(setup, retraced)
-        self._update_rake(setup)
+        setup = self._setup()
+        size = self.scene_size
+        self.overlays.axes(setup, size, self.show_axes)
+        self.overlays.legend(self.resolved, size, self.units, self._pixel_scale, self.show_legend,
+                             self.renderer.read)
+        self._update_probe(retraced)
+        text = "\n".join(self.probe_lines())
+        if self.probe_pinned:
+            text += "\n(pinned: click elsewhere to clear)"
+        self.overlays.probe(setup, size, None if self.probe is None else
+                            self.lines.points[self.probe], text)
+        rake = self.live.rake if self.show_rake else None
+        active = self.live.handle
+        if rake is not None and active is None and self._hover is not None:
+            active = self.live.handle_at(setup, size, *self._hover)
+        self.overlays.rake(rake, active, setup, size, self._pixel_scale)
 
-    def _update_rake(self, setup) -> None:
-        """The rake overlay, its grabbed handle (or the one under the cursor) highlighted."""
-        key = None
-        if self.rake is not None and self.show_rake:
-            active = self._handle
-            if active is None and self._hover is not None:
-                active = handle_at(self.rake, setup, self.scene_size, *self._hover)
-            key = (self.rake, active, setup.view.tobytes(), setup.proj.tobytes(),
-                   tuple(self.scene_size), self._pixel_scale)
-        if key == self._overlay_keys.get("rake"):
-            return
-        self._overlay_keys["rake"] = key
-        drawn = None if key is None else rake_image(self.rake, setup, self.scene_size, key[1],
-                                                    self._pixel_scale)
-        if drawn is None:
-            self.overlays.remove("rake")
-        else:
-            self.overlays.set("rake", *drawn)
-
-    def _update_legend(self) -> None:
-        """The renderer's legend of the style in effect, in the scene viewport where the style
-        places it; "auto" chooses the corner covering the fewest lines (and not the axes) when
-        the legend changes, and keeps it while the view moves."""
-        style = self.resolved
-        key = None
-        if self.show_legend:
-            key = (legend_key(style), self.units, tuple(self.scene_size), self._pixel_scale)
-        if key == self._overlay_keys.get("legend"):
-            return
-        self._overlay_keys["legend"] = key
-        box = None
-        if key is not None:
-            coverage = None
-            if style.legend.placement == "auto":
-                coverage = drawn_pixels(self.renderer.read(), style)
-                axes = self.overlays.box("axes")
-                if axes is not None:
-                    coverage[axes[1]:axes[3], axes[0]:axes[2]] = True
-            image, box = legend_image(style, self.scene_size, units=self.units,
-                                      scale=self._pixel_scale, coverage=coverage,
-                                      text_px=LEGEND_TEXT_PX)
-        if box is None:
-            self.overlays.remove("legend")
-        else:
-            x0, y0, x1, y1 = box
-            self.overlays.set("legend", image[y0:y1, x0:x1], (x0, y0))
-
-    def _update_probe(self, setup, retraced: bool = False) -> None:
-        """``retraced``: the lines were traced in this frame; a hover probe then waits for the
-        next frame, so that the new lines' index is not built while this one is drawn (the
-        probe would find it unbuilt anyway)."""
+    def _update_probe(self, retraced: bool = False) -> None:
+        """The probe under the cursor, while hovering probes.  ``retraced``: the lines were
+        traced in this frame; a hover probe then waits for the next frame, so that the new
+        lines' index is not built while this one is drawn (the probe would find it unbuilt
+        anyway)."""
         key = (self._scene_key, self._hover, self.probe_on_hover)
         if (self.probe_on_hover and not self.probe_pinned and self._hover is not None
                 and key != self._probe_key and self._drag is None):
@@ -829,24 +571,6 @@ class Viewer:
                 self._probe_key = key
         else:
             self._probe_key = key
-        if self.probe is None:
-            for name in ("probe", "probe marker"):
-                self._overlay(name, None, None, None)
-            return
-        sw, sh = self.scene_size
-        clip = setup.proj @ setup.view @ np.r_[self.lines.points[self.probe], 1.0]
-        if clip[3] <= 0:  # behind the eye
-            clip[3] = 1e-9
-        x = (clip[0] / clip[3] + 1) / 2 * sw
-        y = (1 - clip[1] / clip[3]) / 2 * sh
-        text = "\n".join(self.probe_lines())
-        if self.probe_pinned:
-            text += "\n(pinned: click elsewhere to clear)"
-        self._overlay("probe marker", "ring", ring_image,
-                      lambda w, h: (round(x - w / 2), round(y - h / 2)))
-        self._overlay("probe", text, lambda: text_image(text, background=(20, 20, 24, 215)),
-                      lambda w, h: (int(min(max(x + 14, 0), max(sw - w, 0))),
-                                    int(min(max(y + 14, 0), max(sh - h, 0)))))
 
     def step(self, read_screen: bool = False) -> np.ndarray | None:
         """One frame.  ``read_screen``: return the window's image (scene + panel) as (H, W, 4)
@@ -875,16 +599,17 @@ class Viewer:
             self.panel.draw()  # may edit the style or save it; measures its width
         imgui.render()
         self._wake = max(self._wake - 1, 0)
-        x0 = min(round(self.panel_width), fw - 1) if self.show_panel else 0
+        x0 = min(round(self.panel.width), fw - 1) if self.show_panel else 0
         self.scene_origin, self.scene_size = x0, (fw - x0, fh)
         with self.ctx:
             t_seed = time.perf_counter()
-            retraced = self._update_seeding()
+            retraced = self.live.due()
+            if retraced:
+                self.retrace()
             self._draw_scene()
             if retraced:  # the new lines drawn, finished: what following the mouse costs
                 self.ctx.finish()
-                self.reseed_time = time.perf_counter() - t_seed
-                self._reseed_times = [*self._reseed_times[1 - LIVE_FRAMES:], self.reseed_time]
+                self.live.timed(time.perf_counter() - t_seed)
             self._update_overlays(retraced)
             composed = self.overlays.compose(self.renderer.output())
             screen = self.ctx.detect_framebuffer(0)  # the window's, at its current size

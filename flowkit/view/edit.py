@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from ..render.style import ColorMap, Range, Style, WidthMap
+from ..render.style.model import ColorMap, Range, Style, WidthMap
 
 KINDS = ("float", "color", "range", "cmap", "shape", "attribute")
 

@@ -1,5 +1,6 @@
-"""The outline of a box (the lines' or the field's bounds): twelve 1-pixel edges drawn into the
-scene with its depth, so lines in front hide them as in ParaView's outline."""
+"""The outline of a box (the lines' or the field's bounds, ``domain_bounds`` where their file
+records it): twelve 1-pixel edges drawn into the scene with its depth, so lines in front hide
+them as in ParaView's outline."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ import itertools
 
 import moderngl
 import numpy as np
+
+from ..lines import Lines
 
 _VS = """
 #version 330
@@ -20,6 +23,19 @@ uniform vec4 u_color;
 out vec4 f_color;
 void main() { f_color = u_color; }
 """
+
+
+def domain_bounds(lines: Lines) -> np.ndarray | None:
+    """The field's box (3, 2) that ``lines`` were traced in, where their file records it
+    (``domain_bounds``: six numbers, as text or an array), else None."""
+    value = lines.attrs.get("domain_bounds")
+    if value is None:
+        return None
+    try:
+        b = np.asarray(value.split() if isinstance(value, str) else value, float).reshape(3, 2)
+    except ValueError:
+        return None  # not six numbers: the lines' own box instead
+    return b if np.all(np.isfinite(b)) and np.all(b[:, 1] >= b[:, 0]) else None
 
 
 def box_edges(bounds: np.ndarray) -> np.ndarray:

@@ -1,6 +1,7 @@
 """Overlays: RGBA images (text and graphics drawn with Pillow at window resolution) composited
 over the scene, and the images the viewer shows there: orientation axes, text boxes, the probe's
-marker.
+marker; ``SceneOverlays`` places the viewer's (axes, legend, probe, rake), each drawn again
+only when what it shows changed.
 
 ``OverlayLayer.set(name, image, pos)`` places an (H, W, 4) uint8 image, straight alpha, top row
 first, with its top left corner at ``pos`` (scene pixels, y down); ``compose`` draws the scene
@@ -16,7 +17,11 @@ import moderngl
 import numpy as np
 from PIL import Image, ImageDraw
 
-from ..render.legend import text_font
+from ..render.legend import drawn_pixels, legend_image, legend_key, text_font
+from .rake import rake_image
+
+MARGIN = 8  # px between overlays and the scene's edges
+LEGEND_TEXT_PX = 14  # the legend's text size (times the HiDPI scale), near the panel's
 
 _VS = """
 #version 330
@@ -140,6 +145,95 @@ class OverlayLayer:
         self._release_target()
         for o in (self._vao, self._vbo, self._prog):
             o.release()
+
+
+class SceneOverlays(OverlayLayer):
+    """The overlays the viewer shows over its scene (scene pixels, y down)."""
+
+    def __init__(self, ctx: moderngl.Context):
+        super().__init__(ctx)
+        self._keys: dict[str, object] = {}  # what each overlay's image shows
+
+    def _keyed(self, name: str, key, make, place) -> None:
+        """Overlay ``name`` with the image ``make()`` (made again only when ``key`` changes) at
+        ``place(w, h)``; ``key`` None removes it."""
+        if key is None:
+            self.remove(name)
+            self._keys.pop(name, None)
+            return
+        o = self.overlays.get(name)
+        image = o.image if o is not None and self._keys.get(name) == key else make()
+        self._keys[name] = key
+        h, w = image.shape[:2]
+        self.set(name, image, place(w, h))
+
+    def _redrawn(self, name: str, key, draw) -> None:
+        """Overlay ``name`` as ``draw()`` gives it, (image, top left) or None (not shown), drawn
+        again only when ``key`` changes; ``key`` None removes it."""
+        if key == self._keys.get(name):
+            return
+        self._keys[name] = key
+        drawn = None if key is None else draw()
+        if drawn is None:
+            self.remove(name)
+        else:
+            self.set(name, *drawn)
+
+    def axes(self, setup, size, shown: bool) -> None:
+        """Orientation axes of the camera's ``setup`` in the bottom left corner."""
+        sh = size[1]
+        view = np.round(setup.view[:3, :3], 4)
+        self._keyed("axes", view.tobytes() if shown else None, lambda: axes_image(view),
+                    lambda w, h: (MARGIN, sh - h - MARGIN))
+
+    def legend(self, style, size, units, scale: float, shown: bool, scene) -> None:
+        """The renderer's legend of ``style`` (resolved: what is drawn), where the style places
+        it; "auto" chooses the corner covering the fewest lines of ``scene()`` (the scene's
+        image) and not the axes when the legend changes, and keeps it while the view moves."""
+        key = (legend_key(style), units, tuple(size), scale) if shown else None
+
+        def draw():
+            coverage = None
+            if style.legend.placement == "auto":
+                coverage = drawn_pixels(scene(), style)
+                axes = self.box("axes")
+                if axes is not None:
+                    coverage[axes[1]:axes[3], axes[0]:axes[2]] = True
+            image, box = legend_image(style, size, units=units, scale=scale, coverage=coverage,
+                                      text_px=LEGEND_TEXT_PX)
+            if box is None:
+                return None
+            x0, y0, x1, y1 = box
+            return image[y0:y1, x0:x1], (x0, y0)
+
+        self._redrawn("legend", key, draw)
+
+    def probe(self, setup, size, point, text: str) -> None:
+        """The probe's marker on world ``point`` and its read-out ``text`` beside it (kept
+        inside the scene); ``point`` None removes both."""
+        if point is None:
+            for name in ("probe", "probe marker"):
+                self._keyed(name, None, None, None)
+            return
+        sw, sh = size
+        clip = setup.proj @ setup.view @ np.r_[point, 1.0]
+        if clip[3] <= 0:  # behind the eye
+            clip[3] = 1e-9
+        x = (clip[0] / clip[3] + 1) / 2 * sw
+        y = (1 - clip[1] / clip[3]) / 2 * sh
+        self._keyed("probe marker", "ring", ring_image,
+                    lambda w, h: (round(x - w / 2), round(y - h / 2)))
+        self._keyed("probe", text, lambda: text_image(text, background=(20, 20, 24, 215)),
+                    lambda w, h: (int(min(max(x + 14, 0), max(sw - w, 0))),
+                                  int(min(max(y + 14, 0), max(sh - h, 0)))))
+
+    def rake(self, rake, active: str | None, setup, size, scale: float) -> None:
+        """The seed rake (None: not shown), handle ``active`` (grabbed, or under the cursor)
+        highlighted."""
+        key = None
+        if rake is not None:
+            key = (rake, active, setup.view.tobytes(), setup.proj.tobytes(), tuple(size), scale)
+        self._redrawn("rake", key, lambda: rake_image(rake, setup, size, active, scale))
 
 
 # -- images -----------------------------------------------------------------------------------

@@ -20,8 +20,10 @@ from imgui_bundle import imgui
 
 from ..render.camera import VIEWS
 from ..render.shapes import SHAPE_NAMES
-from ..render.style import ColorMap, known_colormap
+from ..render.style.check import known_colormap
+from ..render.style.model import ColorMap
 from .edit import auto_range, get_at, params
+from .seeding import LIVE_SECONDS
 
 # offered in the colormap combo (any name the cmap package knows works in the file)
 COLORMAPS = ("viridis", "magma", "inferno", "plasma", "cividis", "turbo", "bupu", "ylorrd",
@@ -89,12 +91,16 @@ def _auto_label(label: str, spec) -> str:
 
 
 class Panel:
+    """The panel of ``viewer`` (a ``Viewer``: its window's state, its style ``session`` and its
+    ``live`` rake are what the widgets show and edit)."""
+
     def __init__(self, viewer):
         self.viewer = viewer
+        self.width = PANEL_WIDTH  # framebuffer pixels, as the panel last drew itself
         self._active = None  # the path of the widget being dragged (one undo step)
 
     def draw(self) -> None:
-        v = self.viewer
+        v, s = self.viewer, self.viewer.session
         io = imgui.get_io()
         height = io.display_size.y
         imgui.set_next_window_pos(imgui.ImVec2(0, 0), imgui.Cond_.always)
@@ -105,35 +111,35 @@ class Panel:
                                                             height))
         imgui.begin("flowkit view", None, imgui.WindowFlags_.no_move
                     | imgui.WindowFlags_.no_collapse)
-        v.panel_width = imgui.get_window_width() * io.display_framebuffer_scale.x
+        self.width = imgui.get_window_width() * io.display_framebuffer_scale.x
         imgui.push_item_width(-135)  # widgets leave room for their labels
         imgui.text(f"frame {1e3 * v.frame_time:.1f} ms, scene {1e3 * v.scene_time:.1f} ms")
         imgui.text(f"{v.renderer.n_drawn} of {v.lines.n_points} vertices drawn")
-        imgui.text(f"updates: {v.updates['uniforms']} uniform-only, {v.updates['recompile']} "
+        imgui.text(f"updates: {s.updates['uniforms']} uniform-only, {s.updates['recompile']} "
                    "recompile")
-        if v.error:
+        if s.error:
             imgui.push_text_wrap_pos(0.0)
-            imgui.text_colored(ERROR_COLOR, f"style error (last good style shown):\n{v.error}")
+            imgui.text_colored(ERROR_COLOR, f"style error (last good style shown):\n{s.error}")
             imgui.pop_text_wrap_pos()
         elif v.message:
             imgui.text_wrapped(v.message)
         if imgui.button("save style"):
-            v.save_style()
+            s.save_style()
         imgui.same_line()
         if imgui.button("reset camera"):
             v.reset_camera()
         imgui.same_line()
         if imgui.button("colour attribute"):
-            v.cycle_color_attribute()
-        n_undo, n_redo = v.history.counts
+            s.cycle_color_attribute()
+        n_undo, n_redo = s.history.counts
         imgui.begin_disabled(n_undo == 0)
         if imgui.button(f"undo ({n_undo})"):
-            v.undo()
+            s.undo()
         imgui.end_disabled()
         imgui.same_line()
         imgui.begin_disabled(n_redo == 0)
         if imgui.button(f"redo ({n_redo})"):
-            v.redo()
+            s.redo()
         imgui.end_disabled()
         imgui.push_text_wrap_pos(0.0)
         keys = ", ".join(f"{k} {what}" for k, what in v.KEYS.values())
@@ -149,7 +155,7 @@ class Panel:
 
     def _view(self) -> None:
         """What is shown besides the lines, and the colour attribute's range."""
-        v = self.viewer
+        v, s = self.viewer, self.viewer.session
         if not imgui.collapsing_header("view", imgui.TreeNodeFlags_.default_open):
             return
         for i, name in enumerate(VIEWS):  # ParaView's view buttons (keys 1-7)
@@ -163,25 +169,25 @@ class Panel:
                 v.toggle(what)
         if v.probe is not None:
             imgui.text_wrapped("probe: " + "; ".join(v.probe_lines()))
-        cm = v.color_map()
+        cm = s.color_map()
         if cm is None:
             return
         imgui.text(f"colour: {cm.attribute} ({cm.cmap})")
         changed, r = self._range(_auto_label("colour range", cm.range),
-                                 v.color_map(resolved=True).range)
+                                 s.color_map(resolved=True).range)
         if changed:
-            v.set_color_range(r, merge=self._merge("colour range"))
+            s.set_color_range(r, merge=self._merge("colour range"))
         self._settle("colour range")
         if imgui.button("data range"):
-            v.set_color_range(None)
+            s.set_color_range(None)
 
     def _seeding(self) -> None:
         """The rake of live seeding: its kind, seed counts, save seeds, the re-trace time."""
-        v = self.viewer
+        v, live = self.viewer, self.viewer.live
         if v.seeding is None or not imgui.collapsing_header("seed rake",
                                                             imgui.TreeNodeFlags_.default_open):
             return
-        rake = v.rake
+        rake = live.rake
         for i, kind in enumerate(("line", "plane")):
             if i:
                 imgui.same_line()
@@ -201,13 +207,11 @@ class Panel:
         if v.seeding.source is not None:
             imgui.text_wrapped(f"lines from the scene's seeds ({v.seeding.source}); drag a rake "
                                "handle to seed from the rake")
-        imgui.text_disabled(v.rake.spec())
-        if v.retraces:
-            from .app import LIVE_SECONDS  # (app imports this module)
-
-            imgui.text(f"{len(v.lines)} lines; re-trace {1e3 * v.trace_time:.0f} ms, with redraw "
-                       f"{1e3 * v.reseed_time:.0f} ms"
-                       + ("" if v.live_time() <= LIVE_SECONDS else "; slow: traced on release"))
+        imgui.text_disabled(live.rake.spec())
+        if live.retraces:
+            imgui.text(f"{len(v.lines)} lines; re-trace {1e3 * live.trace_time:.0f} ms, with "
+                       f"redraw {1e3 * live.reseed_time:.0f} ms"
+                       + ("" if live.live_time() <= LIVE_SECONDS else "; slow: traced on release"))
         keys = ", ".join(f"{k} {what}" for k, what in v.SEED_KEYS.values())
         imgui.text_disabled(f"left drag a handle: move it; {keys}")
         imgui.pop_text_wrap_pos()
@@ -233,9 +237,10 @@ class Panel:
         return changed and r[0] != r[1] and r != (lo, hi), r
 
     def _params(self) -> None:
+        s = self.viewer.session
         group = None
         is_open = False
-        for p in params(self.viewer.style):
+        for p in params(s.style):
             if p.group != group:
                 group = p.group
                 is_open = imgui.collapsing_header(group, imgui.TreeNodeFlags_.default_open)
@@ -244,20 +249,20 @@ class Panel:
             imgui.push_id(repr(p.path))
             changed, value = self._widget(p)
             if changed and p.kind == "attribute":  # a new attribute comes with its data range
-                cm = get_at(self.viewer.style, p.path[:-1])
-                self.viewer.edit(p.path[:-1], ColorMap(cm.cmap, value, auto_range(cm.range)))
+                cm = get_at(s.style, p.path[:-1])
+                s.edit(p.path[:-1], ColorMap(cm.cmap, value, auto_range(cm.range)))
             elif changed:
-                self.viewer.edit(p.path, value, merge=self._merge(p.path))
+                s.edit(p.path, value, merge=self._merge(p.path))
             self._settle(p.path)
             imgui.pop_id()
 
     def _widget(self, p):
-        v = self.viewer
+        s = self.viewer.session
         if p.kind == "float":
             low = -math.inf if p.low is None else p.low
             value, label = p.value, p.label
             if isinstance(value, str):  # a relative length ("1/200d"): its number in this view;
-                value, label = get_at(v.resolved, p.path), f"{p.label} ({p.value})"  # a drag
+                value, label = get_at(s.resolved, p.path), f"{p.label} ({p.value})"  # a drag
             fmt = number_format(value)  # sets a number
             changed, x = imgui.drag_float(label, value, _float_speed(value), format=fmt)
             x = max(shown(x, fmt), low)
@@ -267,9 +272,9 @@ class Panel:
             c = keep_unedited(c, p.value, shown_color)
             return changed and c != tuple(p.value), c
         if p.kind == "range":  # an automatic range shows the numbers it resolves to
-            return self._range(_auto_label(p.label, p.value), get_at(v.resolved, p.path))
+            return self._range(_auto_label(p.label, p.value), get_at(s.resolved, p.path))
         if p.kind in ("cmap", "shape", "attribute"):
-            items = {"cmap": _colormaps(), "shape": list(SHAPE_NAMES), "attribute": v.color_attributes}[p.kind]
+            items = {"cmap": _colormaps(), "shape": list(SHAPE_NAMES), "attribute": s.color_attributes}[p.kind]
             if p.value not in items:
                 items = [p.value, *items]
             changed, k = imgui.combo(p.label, items.index(p.value), items)

@@ -4,10 +4,17 @@ options and backend (a scene's: ``open_scene``), and where "save seeds" writes t
 ``LiveSeeding.trace(rake)`` is ``flowkit.trace(field, rake.seeds(), options, backend=...)``
 (then the scene's pruning, if it has one): the call a scene makes with that seed spec, the
 kernel warm after the first one.  ``save(rake)`` writes the spec, one line, atomically.
+
+``LiveRake`` is the rake as the window edits it: the handle a left drag moves, and when the
+lines are traced again.  When the rake has changed, the next frame traces its seeds again
+(while dragging too, as long as re-trace and redraw take at most ``LIVE_SECONDS``, the median
+of the last ``LIVE_FRAMES``; else on release).  Nothing is traced while the rake stays put.
 """
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,9 +24,11 @@ from ..integrate.trace import trace
 from ..io.atomic import atomic_path
 from ..lines import Lines
 from ..render.camera import Camera
-from .rake import Rake, decimals_for
+from .rake import Rake, decimals_for, drag_point, handle_at, project
 
 SEEDS_SUFFIX = ".seeds"  # not .txt/.csv: --seeds reads those as files of points
+LIVE_SECONDS = 0.1  # re-trace while dragging the rake while re-trace + redraw take <= this
+LIVE_FRAMES = 5  # ... as the median of the last this many
 
 
 @dataclass
@@ -56,6 +65,75 @@ class LiveSeeding:
         path = Path(path) if path is not None else Path(self.save_to)
         with atomic_path(path) as tmp:
             Path(tmp).write_text(rake.spec() + "\n", encoding="utf-8")
+        return path
+
+
+class LiveRake:
+    """The rake of ``seeding`` as the window edits it (None: no live seeding, no rake): the
+    rake, the one the lines shown were traced from, the handle being dragged, the timings."""
+
+    def __init__(self, seeding: LiveSeeding | None):
+        self.seeding = seeding
+        self.rake: Rake | None = None if seeding is None else seeding.rake
+        self.traced = self.rake
+        self.handle: str | None = None
+        self.reseed_time = self.trace_time = 0.0  # s: last re-trace + redraw, its trace
+        self._reseed_times: list[float] = []  # the last LIVE_FRAMES re-trace + redraw times
+        self.retraces = 0
+
+    def handle_at(self, setup, size, x: float, y: float) -> str | None:
+        """The handle at scene pixel (x, y) (within ``rake.GRAB_PX``) of the camera's
+        ``setup`` on a scene of ``size``, or None."""
+        return None if self.rake is None else handle_at(self.rake, setup, size, x, y)
+
+    def handle_xy(self, setup, size, name: str) -> tuple[float, float]:
+        """Scene pixel (x, y) of handle ``name``."""
+        x, y = project(setup, size, self.rake.handles()[name])[0][0]
+        return float(x), float(y)
+
+    def dragged(self, setup, dx: float, dy: float) -> Rake:
+        """The rake with the grabbed handle moved with the mouse (pixels, y down), parallel to
+        the screen, inside the field's box."""
+        to = drag_point(setup, self.rake.handles()[self.handle], dx, dy)
+        return self.rake.moved(self.handle, to, self.seeding.bounds, self.seeding.decimals)
+
+    def due(self) -> bool:
+        """Whether the rake changed since its lines were traced and is to be traced now (while
+        dragging, only when the last re-traces kept up)."""
+        if self.seeding is None or self.rake == self.traced:
+            return False
+        return self.handle is None or self.live_time() <= LIVE_SECONDS
+
+    def trace(self, show: Callable[[Lines], None]) -> Lines:
+        """Trace the rake's seeds (``LiveSeeding.trace``: the scene's call and options) and
+        ``show`` the lines."""
+        t0 = time.perf_counter()
+        lines = self.seeding.trace(self.rake)
+        self.trace_time = time.perf_counter() - t0
+        self.traced = self.rake
+        self.seeding.source = None
+        show(lines)
+        self.retraces += 1
+        return lines
+
+    def timed(self, seconds: float) -> None:
+        """A re-trace and its redraw took ``seconds``."""
+        self.reseed_time = seconds
+        self._reseed_times = [*self._reseed_times[1 - LIVE_FRAMES:], seconds]
+
+    def live_time(self) -> float:
+        """The median of the last ``LIVE_FRAMES`` re-trace + redraw times (s; 0 before the
+        first): a drag traces at every frame while it is at most ``LIVE_SECONDS``, so that one
+        slow frame (another process on the cores) does not stop the lines following."""
+        t = sorted(self._reseed_times)
+        return 0.0 if not t else t[len(t) // 2]
+
+    def save(self, path=None) -> Path:
+        """Write the rake's seed spec (what ``flowkit trace --seeds`` and a scene's ``[seeds]
+        spec`` take) atomically to ``path`` (default ``seeding.save_to``, beside the scene),
+        and print where."""
+        path = self.seeding.save(self.rake, path)
+        print(f"flowkit view: saved seeds to {path}: {self.rake.spec()}", flush=True)
         return path
 
 
