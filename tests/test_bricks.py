@@ -193,3 +193,10 @@ def test_a_budget_far_below_the_field_serves_lines_block_by_block(tmp_path):
     assert lines.attrs["field_bytes_read"] < 5 * 48 ** 3 * 12  # (loading every wanted brick
     # each round read it 20 times over)
     assert lines.attrs["brick_rounds"] > 1
+
+
+def test_a_bricked_trace_shows_its_progress(tmp_path, capsys):
+    path = _abc_file(tmp_path / "abc.h5")
+    trace(load_field(path), SEEDS, max_length=4.0, memory="120kB", progress=True)
+    err = capsys.readouterr().err
+    assert "trace (bricks)" in err and "40/40" in err and "kB read" in err

@@ -264,6 +264,7 @@ class Setup:
         self.grid = g.kernel_args()
         self.bricks = brick_pool(field, opts, backend)
         self.rounds = 0  # passes that ran the lines of one block of bricks (rounds.Rounds)
+        self.progress = opts.progress if opts.progress is not None else sys.stderr.isatty()
         if self.bricks is None:
             self.vec = field.vector
             fa = FieldArrays.of(field)
@@ -349,15 +350,22 @@ class Setup:
         out = self.buffers(n, B)  # one allocation, reused by every pass (later ones have fewer lines)
         extra = []
         rounds = None if self.bricks is None else Rounds(self.bricks, n)
+        bar = self._bar(n)
         while active.size:
             ready = active if rounds is None else rounds.ready(active, si)
-            self.rounds += 0 if rounds is None or ready is active else 1
             part, cols, busy = self.advance_pass(ready, seeds, dirs, spacing, phase, io, sf, si,
                                                  out)
             chunks.append(part)
             if cols is not None:
                 extra.append(cols)
             active = active[busy] if ready is active else np.setdiff1d(active, ready[~busy])
+            if bar is not None:
+                bar.update(n - active.size - bar.n)
+                bar.set_postfix_str(f"{fmt_bytes(self.bricks.bytes_read)} read", refresh=False)
+        if bar is not None:
+            bar.close()
+        if rounds is not None:
+            self.rounds += rounds.rounds
         if len(chunks) == 1:  # one pass: already grouped by line, in order
             self._keep_point_data(extra, chunks[0][1], chunks[0][2], None)
             return (*chunks[0], si)
@@ -366,6 +374,15 @@ class Setup:
         t, s = t[order], s[order]
         self._keep_point_data(extra, t, s, order)
         return pts[order], t, s, owner[order], si
+
+    def _bar(self, n):
+        """Progress of a bricked trace (lines done, bytes read), where asked for: its rounds
+        may take minutes whatever the number of seeds."""
+        if self.bricks is None or not self.progress:
+            return None
+        from tqdm import tqdm
+
+        return tqdm(total=n, unit="line", desc="trace (bricks)", smoothing=0.1)
 
     def reads(self) -> dict:
         """Lines.attrs entries of a field read brick by brick: what was read, and the pool."""
