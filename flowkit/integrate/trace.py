@@ -99,7 +99,7 @@ def check_result(n_seeds: int, n_drawable: int, reasons: np.ndarray, empty: str 
 
 def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None, *,
                   batch_seeds: int = 4096, position_dtype="float32", backend="numba",
-                  empty: str = "raise", **kw):
+                  empty: str = "raise", setup=None, **kw):
     """Trace and stream each batch of ``batch_seeds`` seeds to the HDF5 file ``path``.
 
     Peak memory is bounded by one batch, whatever the number of seeds: the pass buffer
@@ -107,7 +107,9 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
     unless a batch has over 52k tasks) plus the batch's vertices, held about twice while they are
     ordered, at 40 bytes each plus 8 bytes per attribute component: ~100 MB for 4096 seeds of
     250 vertices.  The file appears atomically when complete.  Returns the path.  ``empty``: as
-    for ``trace`` (raised before the file appears).
+    for ``trace`` (raised before the file appears).  ``setup``: what runs the passes of each
+    batch in place of ``Setup(field, opts, backend)`` (the scale-out's block mode: the same
+    ``run``, ``reads`` and ``path``, on workers).
     """
     from ..io.lines_h5 import LinesWriter
 
@@ -116,7 +118,7 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
     writer = None
     drawable, reasons = 0, []
     try:
-        setup = Setup(field, opts, backend)
+        setup = Setup(field, opts, backend) if setup is None else setup
         for part in _batches(field, seeds, opts, setup, batch_seeds):
             part.attrs = {**line_attrs(field, opts, setup.path), **setup.reads()}
             drawable += int(np.count_nonzero(part.n_vertices >= 2))
@@ -243,7 +245,9 @@ def _sampled_speed(field: Field) -> float:
 class Setup:
     """Kernel arguments derived once per trace from the field and the options."""
 
-    def __init__(self, field: Field, opts: TraceOptions, backend="numba"):
+    def __init__(self, field: Field, opts: TraceOptions, backend="numba", pool=None):
+        """``pool``: the BrickPool to read the vector through in place of ``brick_pool``'s (a
+        worker's, in the scale-out's block mode)."""
         _attributes.check(field, opts.attributes)
         self.advance = _backend(backend)
         # a backend that computes the requested attributes itself (OpenCL: in its kernel) returns
@@ -262,7 +266,7 @@ class Setup:
         m = entry.explicit  # the tableau the kernel runs first; None: the entry's own driver
         self.method = m
         self.grid = g.kernel_args()
-        self.bricks = brick_pool(field, opts, backend)
+        self.bricks = brick_pool(field, opts, backend) if pool is None else pool
         self.rounds = 0  # passes that ran the lines of one block of bricks (rounds.Rounds)
         if self.bricks is None:
             self.vec = field.vector
@@ -332,32 +336,38 @@ class Setup:
         cols = None
         if self.n_columns:  # the backend's attribute columns, in pack's order
             cols = out_par[:, :, 2:][np.arange(out_p.shape[1])[None, :] < out_n[:, None]]
-        sub = si[active]
-        busy = (sub[:, K.I_STATUS] != K.DONE) | (sub[:, K.I_PEND] != 0) | (sub[:, K.I_FINAL] != 0)
-        return part, cols, busy
+        return part, cols, unfinished(si[active])
+
+    def passes(self, active, seeds, dirs, spacing, phase, io, sf, si, out, rounds=None,
+               owned=None):
+        """Passes (``advance_pass``) until every task of ``active`` is done, or, with
+        ``rounds`` (a Rounds) and ``owned`` (its blocks this process serves), waits for a brick
+        of a block it does not own; yields each pass's vertices and attribute columns."""
+        while active.size:
+            ready = active if rounds is None else rounds.ready(active, si, owned)
+            if not ready.size:  # every line left waits for a block served elsewhere
+                return
+            self.rounds += 0 if rounds is None or ready is active else 1
+            part, cols, busy = self.advance_pass(ready, seeds, dirs, spacing, phase, io, sf, si,
+                                                 out)
+            yield part, cols
+            active = active[busy] if ready is active else np.setdiff1d(active, ready[~busy])
 
     def run(self, seeds, dirs, emit, spacing, phase, budget):
         """Run tasks to completion; returns (points, t, s, owner, si) with vertices grouped by
         task in order along each task's half-line."""
         n = seeds.shape[0]
         io, sf, si = self.tasks(n, emit)
-        active = np.arange(n, dtype=np.int64)
         chunks = []  # per pass: (points, t, s, owner)
-        B = budget or int(min(MAX_BUDGET, max(16, BUFFER_BYTES // (40 * n))))
-        if emit == K.EMIT_FINAL:
-            B = 2
-        out = self.buffers(n, B)  # one allocation, reused by every pass (later ones have fewer lines)
+        # one allocation, reused by every pass (later ones have fewer lines)
+        out = self.buffers(n, pass_budget(n, emit, budget))
         extra = []
         rounds = None if self.bricks is None else Rounds(self.bricks, n)
-        while active.size:
-            ready = active if rounds is None else rounds.ready(active, si)
-            self.rounds += 0 if rounds is None or ready is active else 1
-            part, cols, busy = self.advance_pass(ready, seeds, dirs, spacing, phase, io, sf, si,
-                                                 out)
+        for part, cols in self.passes(np.arange(n, dtype=np.int64), seeds, dirs, spacing, phase,
+                                      io, sf, si, out, rounds):
             chunks.append(part)
             if cols is not None:
                 extra.append(cols)
-            active = active[busy] if ready is active else np.setdiff1d(active, ready[~busy])
         if len(chunks) == 1:  # one pass: already grouped by line, in order
             self._keep_point_data(extra, chunks[0][1], chunks[0][2], None)
             return (*chunks[0], si)
@@ -387,6 +397,19 @@ class Setup:
         if self.n_columns:
             cols = np.concatenate(extra)
             self.point_data = self.advance.point_data(t, s, cols if order is None else cols[order])
+
+
+def pass_budget(n: int, emit: int, budget: int | None) -> int:
+    """Vertices per task in one pass of ``n`` tasks: ``budget`` (option budget), else what a
+    BUFFER_BYTES buffer holds (16 to MAX_BUDGET); 2 where only the final vertex is kept."""
+    if emit == K.EMIT_FINAL:
+        return 2
+    return budget or int(min(MAX_BUDGET, max(16, BUFFER_BYTES // (40 * n))))
+
+
+def unfinished(si) -> np.ndarray:
+    """Which tasks (rows of the int state) have more to do or to emit."""
+    return (si[:, K.I_STATUS] != K.DONE) | (si[:, K.I_PEND] != 0) | (si[:, K.I_FINAL] != 0)
 
 
 def brick_pool(field: Field, opts: TraceOptions, backend="numba"):
