@@ -36,6 +36,14 @@ def block_span(count: np.ndarray, slots: int) -> np.ndarray:
     return np.minimum(count, side)
 
 
+def blocks_of(bricks: np.ndarray, count, span) -> np.ndarray:
+    """The block (C order, ``span`` bricks along each axis) of each brick of a grid of
+    ``count`` bricks."""
+    ijk = np.unravel_index(bricks, tuple(count))
+    blocks = -(-np.asarray(count) // np.asarray(span))
+    return np.ravel_multi_index(tuple(i // s for i, s in zip(ijk, span)), tuple(blocks))
+
+
 class Rounds:
     """The scheduler of a bricked trace of ``n`` tasks reading ``pool`` (a BrickPool), in
     blocks of ``span`` bricks (default ``block_span``)."""
@@ -49,9 +57,7 @@ class Rounds:
         self.rounds = 0
 
     def block_of(self, bricks: np.ndarray) -> np.ndarray:
-        ijk = np.unravel_index(bricks, tuple(self.pool.count))
-        return np.ravel_multi_index(tuple(i // s for i, s in zip(ijk, self.span)),
-                                    tuple(self.blocks))
+        return blocks_of(bricks, self.pool.count, self.span)
 
     def ready(self, active: np.ndarray, si: np.ndarray, owned=None) -> np.ndarray:
         """The lines of ``active`` the next pass runs, their bricks loaded: every line that
