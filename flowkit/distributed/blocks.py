@@ -37,7 +37,7 @@ from ..fields.stored import fmt_bytes
 from ..integrate import schema as S
 from ..integrate.options import TraceOptions
 from ..integrate.rounds import WANTED, Rounds, block_span, blocks_of
-from ..integrate.trace import pass_budget, trace_to_file, unfinished
+from ..integrate.trace import pass_budget, trace_to_file, typical_speed, unfinished
 from .tasks import JobError, numba_threads, open_field
 
 WORKER_SHARE = 0.5  # of a worker's memory limit for its pool: dask pauses a worker at 80 %
@@ -123,6 +123,7 @@ class Job:
     options: TraceOptions
     span: tuple
     budget: int  # bytes of a worker's pool
+    speed: float  # the field's typical speed (sampled on the client: on a small field, all of it)
 
 
 @dataclass
@@ -164,7 +165,7 @@ def _setup(job: Job):
             _SETUPS.clear()  # one job per worker: the last one's pool goes
             field = open_field(job.source, job.vector)
             pool = _Pool(field.stored_vector(), field.grid, job.budget)
-            got = _SETUPS[job.key] = (Setup(field, job.options, "numba", pool=pool),
+            got = _SETUPS[job.key] = (Setup(field, job.options, "numba", pool, job.speed),
                                       threading.Lock())
     return got
 
@@ -254,7 +255,8 @@ class BlockRun:
             budget = None if limit is None else int(WORKER_SHARE * limit)
         self.bricks = self.layout = Layout(field, len(self.addrs), opts.memory or budget)
         self.job = Job(f"{os.getpid()}-{id(self)}-{time.time_ns()}", source, vector, opts,
-                       tuple(int(v) for v in self.layout.span), self.layout.budget)
+                       tuple(int(v) for v in self.layout.span), self.layout.budget,
+                       typical_speed(field))
         self.paths: set = set()
         self.stats = {"rounds": 0, "sends": 0, "lines": 0, "busy": 0.0, "slots": 0.0,
                       "loads": 0, "bytes_read": 0}

@@ -169,12 +169,12 @@ def line_attrs(field: Field, opts: TraceOptions, path: str | None = None) -> dic
     }
 
 
-def stagnation_speed(field: Field, opts: TraceOptions) -> float:
+def stagnation_speed(field: Field, opts: TraceOptions, speed: float | None = None) -> float:
     """The speed below which ``trace`` stops a line: ``stagnation``, or ``stagnation_rel`` times
-    the field's typical speed."""
+    the field's typical speed (``speed`` where known)."""
     if opts.stagnation is not None:
         return opts.stagnation
-    return opts.stagnation_rel * typical_speed(field)
+    return opts.stagnation_rel * (typical_speed(field) if speed is None else speed)
 
 
 # -- internals --------------------------------------------------------------------------------
@@ -245,9 +245,11 @@ def _sampled_speed(field: Field) -> float:
 class Setup:
     """Kernel arguments derived once per trace from the field and the options."""
 
-    def __init__(self, field: Field, opts: TraceOptions, backend="numba", pool=None):
-        """``pool``: the BrickPool to read the vector through in place of ``brick_pool``'s (a
-        worker's, in the scale-out's block mode)."""
+    def __init__(self, field: Field, opts: TraceOptions, backend="numba", pool=None,
+                 speed: float | None = None):
+        """``pool``: the BrickPool to read the vector through in place of ``brick_pool``'s;
+        ``speed``: the field's ``typical_speed`` where known (both: a worker's in the
+        scale-out's block mode, which reads only its bricks)."""
         _attributes.check(field, opts.attributes)
         self.advance = _backend(backend)
         # a backend that computes the requested attributes itself (OpenCL: in its kernel) returns
@@ -278,7 +280,7 @@ class Setup:
         self.arrays = fa, None if m is None else MethodArrays.of(m)
         ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
         cell = g.min_cell_size
-        vtyp = typical_speed(field)
+        vtyp = typical_speed(field) if speed is None else speed
         # time needed to cross the smallest cell at the typical speed (or its arc length)
         cross = cell if opts.parameter == "arc_length" else cell / (vtyp if vtyp > 0 else 1.0)
         fo = np.zeros(K.NFO)
@@ -295,7 +297,7 @@ class Setup:
         fo[K.O_HMIN] = opts.min_step if opts.min_step is not None else 1e-10 * cross
         fo[K.O_HMAX] = opts.max_step if opts.max_step is not None else np.inf
         fo[K.O_MAXLEN], fo[K.O_MAXTIME] = opts.max_length, opts.max_time
-        fo[K.O_STAG] = stagnation_speed(field, opts)
+        fo[K.O_STAG] = stagnation_speed(field, opts, vtyp)
         fo[K.O_CELLFAC] = CELL_CAP
         self.fo = fo
         io = np.zeros(K.NIO, np.int64)
