@@ -121,6 +121,7 @@ class Job:
     source: object  # path or SnapshotRef
     vector: str | None
     options: TraceOptions
+    size: tuple  # nodes per brick (the file's chunks: a field a worker read whole has none)
     span: tuple
     budget: int  # bytes of a worker's pool
     speed: float  # the field's typical speed (sampled on the client: on a small field, all of it)
@@ -164,7 +165,7 @@ def _setup(job: Job):
         if got is None:
             _SETUPS.clear()  # one job per worker: the last one's pool goes
             field = open_field(job.source, job.vector)
-            pool = _Pool(field.stored_vector(), field.grid, job.budget)
+            pool = _Pool(field.stored_vector(), field.grid, job.budget, job.size)
             got = _SETUPS[job.key] = (Setup(field, job.options, "numba", pool, job.speed),
                                       threading.Lock())
     return got
@@ -255,6 +256,7 @@ class BlockRun:
             budget = None if limit is None else int(WORKER_SHARE * limit)
         self.bricks = self.layout = Layout(field, len(self.addrs), opts.memory or budget)
         self.job = Job(f"{os.getpid()}-{id(self)}-{time.time_ns()}", source, vector, opts,
+                       tuple(int(v) for v in self.layout.size),
                        tuple(int(v) for v in self.layout.span), self.layout.budget,
                        typical_speed(field))
         self.paths: set = set()
