@@ -3,16 +3,15 @@ handed between them; the same lines as one process, bit for bit (ABC both ways w
 a NaN hole across a block face, periodic axes, the heated room); the choice of mode; a killed
 worker; one-line errors and no output where a scheduler, a file or a block fails."""
 
-import logging
 import os
 import signal
 import threading
 import time
 
-import distributed
 import h5py
 import numpy as np
 import pytest
+import test_distributed
 from test_bricks import SEEDS, _abc_file
 from test_stored_fields import _same
 
@@ -23,15 +22,8 @@ from flowkit.fields import load_field, save_field
 from flowkit.io.lines_h5 import read_lines
 
 L = 2 * np.pi
+client = test_distributed.client  # (the fixture: a LocalCluster of 2 worker processes)
 READS = ("bricks_read", "field_bytes_read", "brick_rounds", "brick_pool_bytes")
-
-
-@pytest.fixture(scope="module")
-def client():
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=":0", silence_logs=logging.CRITICAL) as cluster, \
-            distributed.Client(cluster) as c:
-        yield c
 
 
 def _blocks(client, path, seeds, timings=None, **kw):
@@ -77,11 +69,11 @@ def test_block_mode_equals_the_serial_trace(client, tmp_path, case):
 def test_a_nan_hole_across_a_block_face(client, tmp_path):
     """The two blocks meet at x node 16 (bricks of 8, 2 bricks per block along x): NaN nodes
     on both sides end lines there with the serial reasons."""
-    path = _abc_file(tmp_path / "hole.h5", hole=(slice(13, 20), slice(None), slice(4, 20)))
+    path = _abc_file(tmp_path / "hole.h5", hole=(slice(13, 20), slice(4, 12), slice(4, 20)))
     t = {}
     whole, got = _blocks(client, path, SEEDS, t, max_length=10.0, direction="both",
                          attributes=["speed"])
-    assert t["block_bricks"] == "2 3 3"
+    assert t["block_bricks"] == "2 3 3" and t["handoffs_per_line"] > 0, t
     _same_lines_and_attrs(whole, got)
     reasons = np.concatenate([got.line_data["reason"], got.line_data["reason_backward"]])
     assert np.count_nonzero(reasons == 6) >= 5  # (6: a NaN node)
