@@ -1,7 +1,7 @@
 """The scale-out options of ``flowkit trace`` (added by ``add_scale_options``) and their run.
 
 ``flowkit trace`` hands a run here (``wanted(args)``) when a cluster is asked for (``--workers``,
-``--scheduler``), when the input is a series (a ``.series`` file or a glob: every snapshot is
+``--scheduler``, ``--distribute``), when the input is a series (a ``.series`` file or a glob: every snapshot is
 traced; ``--snapshots`` picks some, also in a multi-snapshot HDF5 file, which otherwise gives its
 first snapshot as before), or for ``--pathlines``.
 """
@@ -26,6 +26,10 @@ def add_scale_options(parser) -> None:
     g.add_argument("--per-snapshot", action="store_true",
                    help="one output file per snapshot (OUT_0000.h5 ...) instead of one file with a "
                         "snapshot index")
+    g.add_argument("--distribute", choices=("auto", "seeds", "blocks"),
+                   help="split the seeds across workers (each reads the whole field) or the "
+                        "field's blocks (each reads its own; lines handed between them); auto "
+                        "(default): blocks where the field does not fit a worker's memory limit")
     g.add_argument("--chunk-seeds", type=int, metavar="N",
                    help="seeds per task (default: about 8 tasks per worker thread)")
     g.add_argument("--pathlines", action="store_true",
@@ -38,7 +42,7 @@ def add_scale_options(parser) -> None:
 def wanted(args) -> bool:
     """Whether this run belongs to the scale-out path."""
     return bool(args.workers or args.scheduler or args.pathlines or args.snapshots
-                or args.per_snapshot or _is_series(args.field))
+                or args.per_snapshot or args.distribute or _is_series(args.field))
 
 
 def run(args, options) -> int:
@@ -47,7 +51,7 @@ def run(args, options) -> int:
 
     from ..fields.readers import load_field
     from ..integrate.seeds import parse_seed_spec
-    from .jobs import _series, pathlines_distributed, trace_distributed
+    from .jobs import JobError, _series, pathlines_distributed, trace_distributed
 
     series = _series(args.field)
     snaps = _snapshot_spec(args.snapshots, len(series), args.field)
@@ -65,6 +69,9 @@ def run(args, options) -> int:
     dtype = "float64" if args.float64 else "float32"
     t0 = time.perf_counter()
     if args.pathlines:
+        if args.distribute == "blocks":
+            raise cli.CLIError("--distribute blocks traces streamlines of one snapshot, not "
+                               "--pathlines")
         series = [series[i] for i in snaps] if snaps is not None else args.field
         release = None
         if args.release is not None:
@@ -75,8 +82,12 @@ def run(args, options) -> int:
     else:
         if args.release is not None:
             raise cli.CLIError("--release applies to --pathlines only")
-        outs = trace_distributed(args.field, seeds, args.output, options, snapshots=snaps,
-                                 per_snapshot=args.per_snapshot, position_dtype=dtype, **cluster)
+        try:
+            outs = trace_distributed(args.field, seeds, args.output, options, snapshots=snaps,
+                                     per_snapshot=args.per_snapshot, position_dtype=dtype,
+                                     distribute=args.distribute or "auto", **cluster)
+        except JobError as e:  # (one line: it names the task or worker, block and file)
+            raise cli.CLIError(str(e)) from None
     dt = time.perf_counter() - t0
     if not args.quiet:
         n = len(seeds) * (1 if args.pathlines else len(snaps or series))

@@ -33,7 +33,11 @@ def connect(client=None, scheduler: str | None = None, workers: int | None = Non
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
-        with Client(scheduler) as c:
+        try:
+            c = Client(scheduler)
+        except OSError as e:  # (after distributed.comm.timeouts.connect)
+            raise OSError(f"dask scheduler {scheduler} cannot be reached: {e}") from None
+        with c:
             yield c
         return
     n = default_workers() if workers is None else int(workers)

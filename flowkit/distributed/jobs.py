@@ -19,13 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from ..integrate.options import TraceOptions
+from .blocks import choose, trace_blocks
 from .cluster import connect, slots
 from .join import join_parts
-from .tasks import SeedSlice, Task, chunk_size, run_task
+from .tasks import JobError, SeedSlice, Task, chunk_size, open_field, run_task
 
-
-class JobError(RuntimeError):
-    """A task failed after its retries; the message names the task and the error."""
+__all__ = ["JobError", "pathlines_distributed", "trace_distributed"]
 
 
 def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *, client=None,
@@ -33,7 +32,7 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
                       snapshots=None, per_snapshot: bool = False, vector: str | None = "U",
                       chunk_seeds: int | None = None, position_dtype="float32", retries: int = 2,
                       progress: bool | None = None, timings: dict | None = None,
-                      **kw) -> list[Path]:
+                      distribute: str = "auto", **kw) -> list[Path]:
     """Streamlines of ``seeds`` through every snapshot of ``source`` on a dask cluster.
 
     ``source``: a field file, a ``.series`` file, a glob or a multi-snapshot flowkit HDF5 file
@@ -47,6 +46,11 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
     of ``workers`` processes.  ``timings``, if given, receives the seconds spent until the last
     task finished (``tasks``), joining after that (``join``), the task count and the CPU seconds
     the tasks used (``task_cpu``).  Returns the written paths.
+    ``distribute``: "seeds" (the seeds split across workers, each reading the whole field),
+    "blocks" (the field's bricks split across workers, lines handed between them: ``blocks``,
+    one snapshot) or "auto": blocks where the field's vector does not fit a worker's memory
+    limit.  The choice and why go to ``timings`` (``distribute``, ``distribute_why``) and, unless
+    ``progress`` is False, a line on stderr; block mode records them in the file's attrs.
     """
     opts = _options(options, kw)
     series = _select(_series(source), snapshots)
@@ -57,6 +61,19 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
     outputs = [out.with_name(f"{out.stem}_{i:04d}{out.suffix}") for i in range(len(series))] \
         if multi and per_snapshot else [out]
     with connect(client, scheduler, workers) as c:
+        field = None  # (opened, not read, where its size or bricks matter)
+        if distribute != "seeds" and len(series) == 1:
+            field = open_field(series[0][1], vector)
+        mode, why = choose(distribute, field, c, len(series))
+        if timings is not None:
+            timings.update(distribute=mode, distribute_why=why)
+        if progress is not False:
+            print(f"flowkit: distribute {mode}: {why}", file=sys.stderr)
+        if mode == "blocks":
+            seeds_in = np.load(seed_src) if isinstance(seed_src, str) else seed_src
+            return [trace_blocks(c, series[0][1], vector, seeds_in, out, opts, why,
+                                 position_dtype=position_dtype, retries=retries,
+                                 timings=timings, field=field)]
         chunk = _chunk(chunk_seeds, chunk_size(n, len(series), slots(c)))
         job = _job_hash("trace", [_source_id(r) for _, r in series], vector, seed_src, opts, chunk,
                         position_dtype)

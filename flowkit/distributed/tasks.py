@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +28,10 @@ from ..io.atomic import atomic_path
 from ..lines import Lines
 
 _FIELD_CACHE: dict = {}  # (path, snapshot, vector, mtime) -> Field: the last field opened
+
+
+class JobError(RuntimeError):
+    """A task failed after its retries; the message names the task and the error."""
 
 
 @dataclass(frozen=True)
@@ -75,13 +80,7 @@ def run_task(task: Task) -> dict:
             n_lines = int(f["offsets"].shape[0]) - 1
         return {"key": task.key, "lines": n_lines, "seeds": task.n_seeds, "cached": True,
                 "snapshot": task.snapshot, "seconds": time.perf_counter() - t0, "cpu_s": 0.0}
-    import numba
-
-    # numba's thread count belongs to the calling thread: set for the task, given back after (a
-    # task run in the caller's own thread left it at one thread for whatever ran next)
-    before = numba.get_num_threads()
-    numba.set_num_threads(min(task.numba_threads, numba.config.NUMBA_NUM_THREADS))
-    try:
+    with numba_threads(task.numba_threads):
         seeds = task.seeds.load() if isinstance(task.seeds, SeedSlice) else np.asarray(task.seeds)
         if task.series is not None:
             from ..integrate.pathlines import pathlines
@@ -93,14 +92,27 @@ def run_task(task: Task) -> dict:
 
             lines = trace(open_field(task.source, task.vector), seeds, task.options,
                           empty="ignore")  # one chunk of many: one outside the domain is no error
-    finally:
-        numba.set_num_threads(before)
     lines.line_data["seed_id"] = lines.line_data["seed_id"] + task.first
     t1 = time.perf_counter()
     write_part(lines, part, task.position_dtype)
     return {"key": task.key, "lines": len(lines), "seeds": task.n_seeds, "cached": False,
             "snapshot": task.snapshot, "trace_s": t1 - t0, "seconds": time.perf_counter() - t0,
             "cpu_s": time.process_time() - c0}
+
+
+@contextmanager
+def numba_threads(n: int):
+    """numba at ``n`` threads in this thread inside the ``with``.  numba's thread count belongs to
+    the calling thread: set for a task, given back after (a task run in the caller's own thread
+    left it at one thread for whatever ran next)."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
 
 
 def write_part(lines: Lines, path, position_dtype="float64") -> None:

@@ -148,6 +148,18 @@ def read_whole(field, scalar: str | None = None) -> bool:
     return field.scalars.in_memory(scalar) or field.scalars.meta(scalar).nbytes <= WHOLE_BYTES
 
 
+def cell_nodes(grid, points: np.ndarray) -> np.ndarray:
+    """The lower corner node of each point's cell (wrapped on a periodic axis, clipped to the
+    grid outside it)."""
+    nodes = np.empty((points.shape[0], 3), np.int64)
+    for a, (c, p) in enumerate(zip(grid.axes, grid.period)):
+        x = points[:, a]
+        if p > 0.0:
+            x = c[0] + (x - c[0]) % p
+        nodes[:, a] = np.clip(np.searchsorted(c, x, "right") - 1, 0, c.size - 1)
+    return nodes
+
+
 def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
               budget: int = GROUP_BYTES) -> dict:
     """``compute(field, points)`` (a dict of per-point arrays), on a copy of ``field`` that holds
@@ -165,13 +177,7 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
     points = np.ascontiguousarray(points, np.float64)
     size = brick_nodes(field.stored_vector(), g)
     count = -(-shape // size)
-    nodes = np.empty((points.shape[0], 3), np.int64)  # each point's cell's lower corner
-    for a, (c, p) in enumerate(zip(g.axes, g.period)):
-        x = points[:, a]
-        if p > 0.0:
-            x = c[0] + (x - c[0]) % p
-        nodes[:, a] = np.clip(np.searchsorted(c, x, "right") - 1, 0, c.size - 1)
-    brick = bricks_of(nodes, size, count)
+    brick = bricks_of(cell_nodes(g, points), size, count)
     order = np.argsort(brick, kind="stable")
     ids, first = np.unique(brick[order], return_index=True)
     groups = np.split(order, first[1:])

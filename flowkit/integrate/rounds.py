@@ -26,30 +26,43 @@ from . import schema as S
 WANTED = 4  # bricks a line remembers having waited for since it last moved to another cell
 
 
-class Rounds:
-    """The scheduler of a bricked trace of ``n`` tasks reading ``pool`` (a BrickPool)."""
+def block_span(count: np.ndarray, slots: int) -> np.ndarray:
+    """Bricks per block along each axis for a pool of ``slots``: every brick where the pool
+    holds them all, else a cube of at most half the pool."""
+    count = np.asarray(count, np.int64)
+    if int(np.prod(count)) <= slots:
+        return count.copy()
+    side = max(1, int((slots // 2) ** (1.0 / 3.0) + 1e-9))
+    return np.minimum(count, side)
 
-    def __init__(self, pool, n: int):
+
+def blocks_of(bricks: np.ndarray, count, span) -> np.ndarray:
+    """The block (C order, ``span`` bricks along each axis) of each brick of a grid of
+    ``count`` bricks."""
+    ijk = np.unravel_index(bricks, tuple(count))
+    blocks = -(-np.asarray(count) // np.asarray(span))
+    return np.ravel_multi_index(tuple(i // s for i, s in zip(ijk, span)), tuple(blocks))
+
+
+class Rounds:
+    """The scheduler of a bricked trace of ``n`` tasks reading ``pool`` (a BrickPool), in
+    blocks of ``span`` bricks (default ``block_span``)."""
+
+    def __init__(self, pool, n: int, span=None):
         self.pool = pool
         self.wanted = np.full((n, WANTED), -1, np.int64)
         self.cell = np.full((n, 3), -1, np.int64)  # each line's cell when it last waited
-        count = pool.count
-        if int(np.prod(count)) <= pool.slots:
-            self.span = count.copy()  # one block: the pool holds every brick
-        else:
-            side = max(1, int((pool.slots // 2) ** (1.0 / 3.0) + 1e-9))
-            self.span = np.minimum(count, side)
-        self.blocks = -(-count // self.span)
+        self.span = block_span(pool.count, pool.slots) if span is None else np.asarray(span)
+        self.blocks = -(-pool.count // self.span)
         self.rounds = 0
 
     def block_of(self, bricks: np.ndarray) -> np.ndarray:
-        ijk = np.unravel_index(bricks, tuple(self.pool.count))
-        return np.ravel_multi_index(tuple(i // s for i, s in zip(ijk, self.span)),
-                                    tuple(self.blocks))
+        return blocks_of(bricks, self.pool.count, self.span)
 
-    def ready(self, active: np.ndarray, si: np.ndarray) -> np.ndarray:
+    def ready(self, active: np.ndarray, si: np.ndarray, owned=None) -> np.ndarray:
         """The lines of ``active`` the next pass runs, their bricks loaded: every line that
-        waits for no brick, and the waiting lines of the block where the most wait."""
+        waits for no brick, and the waiting lines of the block where the most wait; with
+        ``owned`` (a bool per block) only of a block owned, the others left waiting."""
         wait = si[active, S.I_WAIT] - 1
         waiting = wait >= 0
         if not waiting.any():
@@ -69,7 +82,10 @@ class Rounds:
         need = np.concatenate([hist, self.pool.corner_bricks(cells)], axis=1)
 
         block = self.block_of(wait)
-        pick = np.flatnonzero(block == np.argmax(np.bincount(block)))
+        here = np.ones(block.size, bool) if owned is None else owned[block]
+        if not here.any():
+            return active[~waiting]
+        pick = np.flatnonzero(here & (block == np.argmax(np.bincount(block[here]))))
         bricks = _within(need[pick], self.pool.slots)
         pick = pick[:bricks.shape[0]]
         self.pool.load(bricks[bricks >= 0])

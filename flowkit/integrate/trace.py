@@ -99,7 +99,7 @@ def check_result(n_seeds: int, n_drawable: int, reasons: np.ndarray, empty: str 
 
 def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None, *,
                   batch_seeds: int = 4096, position_dtype="float32", backend="numba",
-                  empty: str = "raise", **kw):
+                  empty: str = "raise", setup=None, **kw):
     """Trace and stream each batch of ``batch_seeds`` seeds to the HDF5 file ``path``.
 
     Peak memory is bounded by one batch, whatever the number of seeds: the pass buffer
@@ -107,7 +107,9 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
     unless a batch has over 52k tasks) plus the batch's vertices, held about twice while they are
     ordered, at 40 bytes each plus 8 bytes per attribute component: ~100 MB for 4096 seeds of
     250 vertices.  The file appears atomically when complete.  Returns the path.  ``empty``: as
-    for ``trace`` (raised before the file appears).
+    for ``trace`` (raised before the file appears).  ``setup``: what runs the passes of each
+    batch in place of ``Setup(field, opts, backend)`` (the scale-out's block mode: the same
+    ``run``, ``reads`` and ``path``, on workers).
     """
     from ..io.lines_h5 import LinesWriter
 
@@ -116,7 +118,7 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
     writer = None
     drawable, reasons = 0, []
     try:
-        setup = Setup(field, opts, backend)
+        setup = Setup(field, opts, backend) if setup is None else setup
         for part in _batches(field, seeds, opts, setup, batch_seeds):
             part.attrs = {**line_attrs(field, opts, setup.path), **setup.reads()}
             drawable += int(np.count_nonzero(part.n_vertices >= 2))
@@ -167,12 +169,12 @@ def line_attrs(field: Field, opts: TraceOptions, path: str | None = None) -> dic
     }
 
 
-def stagnation_speed(field: Field, opts: TraceOptions) -> float:
+def stagnation_speed(field: Field, opts: TraceOptions, speed: float | None = None) -> float:
     """The speed below which ``trace`` stops a line: ``stagnation``, or ``stagnation_rel`` times
-    the field's typical speed."""
+    the field's typical speed (``speed`` where known)."""
     if opts.stagnation is not None:
         return opts.stagnation
-    return opts.stagnation_rel * typical_speed(field)
+    return opts.stagnation_rel * (typical_speed(field) if speed is None else speed)
 
 
 # -- internals --------------------------------------------------------------------------------
@@ -243,7 +245,11 @@ def _sampled_speed(field: Field) -> float:
 class Setup:
     """Kernel arguments derived once per trace from the field and the options."""
 
-    def __init__(self, field: Field, opts: TraceOptions, backend="numba"):
+    def __init__(self, field: Field, opts: TraceOptions, backend="numba", pool=None,
+                 speed: float | None = None):
+        """``pool``: the BrickPool to read the vector through in place of ``brick_pool``'s;
+        ``speed``: the field's ``typical_speed`` where known (both: a worker's in the
+        scale-out's block mode, which reads only its bricks)."""
         _attributes.check(field, opts.attributes)
         self.advance = _backend(backend)
         # a backend that computes the requested attributes itself (OpenCL: in its kernel) returns
@@ -262,7 +268,7 @@ class Setup:
         m = entry.explicit  # the tableau the kernel runs first; None: the entry's own driver
         self.method = m
         self.grid = g.kernel_args()
-        self.bricks = brick_pool(field, opts, backend)
+        self.bricks = brick_pool(field, opts, backend) if pool is None else pool
         self.rounds = 0  # passes that ran the lines of one block of bricks (rounds.Rounds)
         self.progress = opts.progress if opts.progress is not None else sys.stderr.isatty()
         if self.bricks is None:
@@ -275,7 +281,7 @@ class Setup:
         self.arrays = fa, None if m is None else MethodArrays.of(m)
         ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
         cell = g.min_cell_size
-        vtyp = typical_speed(field)
+        vtyp = typical_speed(field) if speed is None else speed
         # time needed to cross the smallest cell at the typical speed (or its arc length)
         cross = cell if opts.parameter == "arc_length" else cell / (vtyp if vtyp > 0 else 1.0)
         fo = np.zeros(K.NFO)
@@ -292,7 +298,7 @@ class Setup:
         fo[K.O_HMIN] = opts.min_step if opts.min_step is not None else 1e-10 * cross
         fo[K.O_HMAX] = opts.max_step if opts.max_step is not None else np.inf
         fo[K.O_MAXLEN], fo[K.O_MAXTIME] = opts.max_length, opts.max_time
-        fo[K.O_STAG] = stagnation_speed(field, opts)
+        fo[K.O_STAG] = stagnation_speed(field, opts, vtyp)
         fo[K.O_CELLFAC] = CELL_CAP
         self.fo = fo
         io = np.zeros(K.NIO, np.int64)
@@ -333,39 +339,45 @@ class Setup:
         cols = None
         if self.n_columns:  # the backend's attribute columns, in pack's order
             cols = out_par[:, :, 2:][np.arange(out_p.shape[1])[None, :] < out_n[:, None]]
-        sub = si[active]
-        busy = (sub[:, K.I_STATUS] != K.DONE) | (sub[:, K.I_PEND] != 0) | (sub[:, K.I_FINAL] != 0)
-        return part, cols, busy
+        return part, cols, unfinished(si[active])
+
+    def passes(self, active, seeds, dirs, spacing, phase, io, sf, si, out, rounds=None,
+               owned=None):
+        """Passes (``advance_pass``) until every task of ``active`` is done, or, with
+        ``rounds`` (a Rounds) and ``owned`` (its blocks this process serves), waits for a brick
+        of a block it does not own; yields each pass's vertices, attribute columns and the
+        number of tasks left."""
+        while active.size:
+            ready = active if rounds is None else rounds.ready(active, si, owned)
+            if not ready.size:  # every line left waits for a block served elsewhere
+                return
+            self.rounds += 0 if rounds is None or ready is active else 1
+            part, cols, busy = self.advance_pass(ready, seeds, dirs, spacing, phase, io, sf, si,
+                                                 out)
+            active = active[busy] if ready is active else np.setdiff1d(active, ready[~busy])
+            yield part, cols, active.size
 
     def run(self, seeds, dirs, emit, spacing, phase, budget):
         """Run tasks to completion; returns (points, t, s, owner, si) with vertices grouped by
         task in order along each task's half-line."""
         n = seeds.shape[0]
         io, sf, si = self.tasks(n, emit)
-        active = np.arange(n, dtype=np.int64)
         chunks = []  # per pass: (points, t, s, owner)
-        B = budget or int(min(MAX_BUDGET, max(16, BUFFER_BYTES // (40 * n))))
-        if emit == K.EMIT_FINAL:
-            B = 2
-        out = self.buffers(n, B)  # one allocation, reused by every pass (later ones have fewer lines)
+        # one allocation, reused by every pass (later ones have fewer lines)
+        out = self.buffers(n, pass_budget(n, emit, budget))
         extra = []
         rounds = None if self.bricks is None else Rounds(self.bricks, n)
         bar = self._bar(n)
-        while active.size:
-            ready = active if rounds is None else rounds.ready(active, si)
-            part, cols, busy = self.advance_pass(ready, seeds, dirs, spacing, phase, io, sf, si,
-                                                 out)
+        for part, cols, left in self.passes(np.arange(n, dtype=np.int64), seeds, dirs, spacing,
+                                            phase, io, sf, si, out, rounds):
             chunks.append(part)
             if cols is not None:
                 extra.append(cols)
-            active = active[busy] if ready is active else np.setdiff1d(active, ready[~busy])
             if bar is not None:
-                bar.update(n - active.size - bar.n)
+                bar.update(n - left - bar.n)
                 bar.set_postfix_str(f"{fmt_bytes(self.bricks.bytes_read)} read", refresh=False)
         if bar is not None:
             bar.close()
-        if rounds is not None:
-            self.rounds += rounds.rounds
         if len(chunks) == 1:  # one pass: already grouped by line, in order
             self._keep_point_data(extra, chunks[0][1], chunks[0][2], None)
             return (*chunks[0], si)
@@ -404,6 +416,19 @@ class Setup:
         if self.n_columns:
             cols = np.concatenate(extra)
             self.point_data = self.advance.point_data(t, s, cols if order is None else cols[order])
+
+
+def pass_budget(n: int, emit: int, budget: int | None) -> int:
+    """Vertices per task in one pass of ``n`` tasks: ``budget`` (option budget), else what a
+    BUFFER_BYTES buffer holds (16 to MAX_BUDGET); 2 where only the final vertex is kept."""
+    if emit == K.EMIT_FINAL:
+        return 2
+    return budget or int(min(MAX_BUDGET, max(16, BUFFER_BYTES // (40 * n))))
+
+
+def unfinished(si) -> np.ndarray:
+    """Which tasks (rows of the int state) have more to do or to emit."""
+    return (si[:, K.I_STATUS] != K.DONE) | (si[:, K.I_PEND] != 0) | (si[:, K.I_FINAL] != 0)
 
 
 def brick_pool(field: Field, opts: TraceOptions, backend="numba"):

@@ -1,0 +1,371 @@
+"""Block mode: the field's bricks in blocks owned by workers, lines handed between them in rounds.
+
+For a field no worker can hold.  The bricks (``fields.bricks``: the file's chunks) are grouped
+in boxes (blocks), each owned by one worker; the blocks of a worker are a contiguous run of
+them in C order.  A worker keeps one pool of bricks per job (``_SETUPS``: its Setup, kept
+between rounds) and reads only the bricks its lines need: those of its own blocks, and the few
+outside that a line at a block face needs at once (``rounds.Rounds``' need set).
+
+Each round the client sends every unfinished line, as its whole state (the kernel's rows of
+``sf`` and ``si``, its seed, direction, spacing, phase, and the bricks it waited for since it
+last changed cell), to the owner of the block of the brick it waits for.  The worker runs the
+trace's own passes (``Setup.passes``) on them until each line has ended or waits for a brick
+of a block it does not own, and sends back the states, the vertices they emitted and (in
+``si``) the bricks they wait for.  The kernel suspends a line that meets a brick not resident
+at the start of its step and takes the same step again once it is there, so the lines are those
+of one process, bit for bit, wherever they ran.  The client keeps the vertices; the lines are
+assembled in seed order by the trace's own code (``trace_to_file``, through the atomic
+writer): attributes are computed there, from the bricks near the vertices.
+
+A task's result is a function of its inputs up to where each line stops (a brick another
+line's step read may already be resident); the lines are the same either way, so a task
+retried after its worker was lost gives the same lines, and the client takes one result per
+task: none is lost or duplicated.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..fields.bricks import MIN_SLOTS, POOL_SHARE, BrickPool, brick_nodes, bricks_of, cell_nodes
+from ..fields.stored import fmt_bytes
+from ..integrate import schema as S
+from ..integrate.options import TraceOptions
+from ..integrate.rounds import WANTED, Rounds, block_span, blocks_of
+from ..integrate.trace import pass_budget, trace_to_file, typical_speed, unfinished
+from .tasks import JobError, numba_threads, open_field
+
+WORKER_SHARE = 0.5  # of a worker's memory limit for its pool: dask pauses a worker at 80 %
+BATCH_LINES = 1 << 16  # seeds per run of rounds: the client holds their vertices
+MODES = ("auto", "seeds", "blocks")
+
+
+class BlockError(JobError):
+    """A block task failed: the message names the worker, the block and the file."""
+
+
+# -- the choice of mode ------------------------------------------------------------------------
+def choose(distribute: str, field, client, n_snapshots: int) -> tuple[str, str]:
+    """("seeds" or "blocks", why): blocks where a worker cannot hold the field's vector
+    (``POOL_SHARE`` of its memory limit), seeds where it can (or is given no limit)."""
+    if distribute not in MODES:
+        raise ValueError(f"distribute = {distribute!r}: expected one of {', '.join(MODES)}")
+    if distribute == "blocks" and n_snapshots > 1:
+        raise ValueError("distribute='blocks' traces one snapshot: pick it with snapshots=[i]")
+    if distribute != "auto":
+        return distribute, "asked for"
+    if n_snapshots > 1:
+        return "seeds", f"{n_snapshots} snapshots: block mode traces one"
+    size = field.stored_vector().nbytes
+    limit = worker_memory(client)
+    if limit is None:
+        return "seeds", "the workers have no memory limit"
+    fits = size <= POOL_SHARE * limit
+    why = (f"the field's vector ({fmt_bytes(size)}) {'fits' if fits else 'does not fit'} "
+           f"{POOL_SHARE:.0%} of a worker's memory limit ({fmt_bytes(limit)})")
+    return ("seeds" if fits else "blocks"), why
+
+
+def worker_memory(client) -> int | None:
+    """The smallest memory limit of the cluster's workers (None: none has one)."""
+    limits = [w.get("memory_limit") or 0 for w in client.scheduler_info()["workers"].values()]
+    return min(limits) if limits and min(limits) > 0 else None
+
+
+# -- the blocks ---------------------------------------------------------------------------------
+class Layout:
+    """The bricks of ``field`` in blocks for ``n_workers`` workers of ``budget`` bytes each
+    (None: as much as a worker's share of the field takes): a block is at most half a
+    worker's pool, as ``rounds.block_span`` makes it, and there are at least as many blocks as
+    workers, so that every worker owns some."""
+
+    def __init__(self, field, n_workers: int, budget: int | None):
+        stored, grid = field.stored_vector(), field.grid
+        self.grid = grid
+        self.size = brick_nodes(stored, grid)
+        self.count = -(-np.array(grid.shape, np.int64) // self.size)
+        n_bricks = int(np.prod(self.count))
+        slot = int(np.prod(self.size)) * 3 * stored.dtype.itemsize
+        # (a pool of twice a worker's share of the bricks: its blocks and their neighbours)
+        need = max(MIN_SLOTS, 2 * -(-n_bricks // n_workers)) * slot / POOL_SHARE
+        self.budget = int(need if budget is None else min(budget, need))
+        slots = min(n_bricks, int(POOL_SHARE * self.budget // slot))
+        span = block_span(self.count, slots)
+        while int(np.prod(-(-self.count // span))) < n_workers and span.max() > 1:
+            a = int(np.argmax(span))
+            span[a] = -(-span[a] // 2)
+        self.span = span
+        self.n_blocks = int(np.prod(-(-self.count // span)))
+        # each worker a contiguous run of blocks (C order: slabs along x)
+        self.owner = np.arange(self.n_blocks) * n_workers // self.n_blocks
+
+    def blocks_of_points(self, points) -> np.ndarray:
+        return blocks_of(bricks_of(cell_nodes(self.grid, points), self.size, self.count),
+                         self.count, self.span)
+
+    def blocks_of_bricks(self, bricks) -> np.ndarray:
+        return blocks_of(bricks, self.count, self.span)
+
+
+# -- on a worker ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Job:
+    """What every block task of one trace shares."""
+
+    key: str
+    source: object  # path or SnapshotRef
+    vector: str | None
+    options: TraceOptions
+    size: tuple  # nodes per brick (the file's chunks: a field a worker read whole has none)
+    span: tuple
+    budget: int  # bytes of a worker's pool
+    speed: float  # the field's typical speed (sampled on the client: on a small field, all of it)
+
+
+@dataclass
+class Batch:
+    """Lines in flight: their numbers in the trace and their whole state."""
+
+    rows: np.ndarray
+    seeds: np.ndarray
+    dirs: np.ndarray
+    spacing: np.ndarray
+    phase: np.ndarray
+    sf: np.ndarray
+    si: np.ndarray
+    wanted: np.ndarray  # the bricks each waited for since it last changed cell (Rounds)
+    cell: np.ndarray
+
+
+class _Pool(BrickPool):
+    """A worker's pool: it knows the brick it is reading, for the message if that fails."""
+
+    reading = -1
+
+    def _read(self, brick: int, slot: int) -> None:
+        self.reading = brick
+        super()._read(brick, slot)
+        self.reading = -1
+
+
+_SETUPS: dict = {}  # job key -> (Setup, lock): the worker's pool, kept between rounds
+_SETUPS_LOCK = threading.Lock()
+
+
+def _setup(job: Job):
+    from ..integrate.trace import Setup
+
+    with _SETUPS_LOCK:
+        got = _SETUPS.get(job.key)
+        if got is None:
+            _SETUPS.clear()  # one job per worker: the last one's pool goes
+            field = open_field(job.source, job.vector)
+            pool = _Pool(field.stored_vector(), field.grid, job.budget, job.size)
+            got = _SETUPS[job.key] = (Setup(field, job.options, "numba", pool, job.speed),
+                                      threading.Lock())
+    return got
+
+
+def _worker_name() -> str:
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except ValueError:  # (not in a worker: called directly)
+        return f"pid {os.getpid()}"
+
+
+def advance(job: Job, owned: np.ndarray, emit: int, batch: Batch) -> dict:
+    """Run the lines of ``batch`` on this worker until each has ended or waits for a brick of a
+    block not ``owned`` (a bool per block); their states, vertices and counts back."""
+    t0 = time.perf_counter()
+    where = str(getattr(job.source, "path", job.source))
+    worker = _worker_name()
+    mine = np.flatnonzero(owned)
+    try:
+        setup, lock = _setup(job)
+    except Exception as e:  # noqa: BLE001 (whatever opening raised, named in one line)
+        raise BlockError(f"worker {worker}: blocks {_ranges(mine)} of {where}: cannot open the "
+                         f"field: {_one_line(e)}") from None
+    n = batch.rows.size
+    sf, si = batch.sf.copy(), batch.si.copy()
+    with lock, numba_threads(1):
+        pool = setup.bricks
+        loads, read = pool.loads, pool.bytes_read
+        rounds = Rounds(pool, n, np.asarray(job.span))
+        rounds.wanted[:], rounds.cell[:] = batch.wanted, batch.cell
+        io = setup.tasks(0, emit)[0]
+        out = setup.buffers(n, pass_budget(n, emit, job.options.budget))
+        parts = []
+        try:
+            for part, _, _ in setup.passes(np.arange(n, dtype=np.int64), batch.seeds,
+                                           batch.dirs, batch.spacing, batch.phase, io, sf, si,
+                                           out, rounds, owned):
+                parts.append(part)
+        except Exception as e:
+            brick = pool.reading
+            if brick < 0:
+                raise
+            pool.reading = -1
+            block = int(blocks_of(np.array([brick]), pool.count, job.span)[0])
+            raise BlockError(f"worker {worker}: block {block} (brick {brick}) of {where} failed "
+                             f"to load: {_one_line(e)}") from None
+        loads, read = pool.loads - loads, pool.bytes_read - read
+        paths = sorted(setup.paths)
+    pts, t, s, owner = (np.concatenate(c) for c in zip(*parts)) if parts else (
+        np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64))
+    return {"rows": batch.rows, "sf": sf, "si": si, "wanted": rounds.wanted, "cell": rounds.cell,
+            "left": unfinished(si), "points": pts, "t": t, "s": s, "owner": batch.rows[owner],
+            "worker": worker, "seconds": time.perf_counter() - t0, "loads": loads,
+            "bytes_read": read, "paths": paths}
+
+
+def _one_line(e: Exception) -> str:
+    return f"{type(e).__name__}: {' '.join(str(e).split())}"
+
+
+def _ranges(ids) -> str:
+    ids = [int(i) for i in ids]
+    return f"{ids[0]}-{ids[-1]}" if len(ids) > 1 else str(ids[0]) if ids else "none"
+
+
+# -- on the client ---------------------------------------------------------------------------------
+class BlockRun:
+    """What ``trace_to_file`` runs the passes of a batch with (in place of a Setup): rounds of
+    block tasks on the cluster.  ``reads()`` gives the job's counts for the lines' attrs."""
+
+    point_data = None  # (attributes are computed from the field after the trace)
+
+    def __init__(self, client, field, source, vector, opts: TraceOptions, why: str,
+                 retries: int = 2, budget: int | None = None):
+        entry = opts.entry
+        if entry.explicit is None or entry.retrace is not None:
+            raise ValueError(f"method {entry.name}: block mode runs the explicit methods (a field "
+                             f"read brick by brick)")
+        self.client, self.retries, self.why = client, retries, why
+        self.addrs = sorted(client.scheduler_info()["workers"])
+        if not self.addrs:
+            raise RuntimeError("the dask cluster has no workers")
+        if budget is None and opts.memory is None:
+            limit = worker_memory(client)
+            budget = None if limit is None else int(WORKER_SHARE * limit)
+        self.bricks = self.layout = Layout(field, len(self.addrs), opts.memory or budget)
+        self.job = Job(f"{os.getpid()}-{id(self)}-{time.time_ns()}", source, vector, opts,
+                       tuple(int(v) for v in self.layout.size),
+                       tuple(int(v) for v in self.layout.span), self.layout.budget,
+                       typical_speed(field))
+        self.paths: set = set()
+        self.stats = {"rounds": 0, "sends": 0, "lines": 0, "busy": 0.0, "slots": 0.0,
+                      "loads": 0, "bytes_read": 0}
+        self.per_round: list[dict] = []
+
+    def run(self, seeds, dirs, emit, spacing, phase, budget):
+        """Setup.run's result ((points, t, s, owner, si), vertices grouped by task in order
+        along each) from rounds on the workers."""
+        n = seeds.shape[0]
+        sf, si = np.zeros((n, S.NF)), np.zeros((n, S.NI), np.int64)
+        wanted, cell = np.full((n, WANTED), -1, np.int64), np.full((n, 3), -1, np.int64)
+        block = self.layout.blocks_of_points(seeds)
+        live = np.arange(n, dtype=np.int64)
+        chunks = []
+        self.stats["lines"] += n
+        while live.size:
+            results = self._round(live, block[live], emit, Batch(
+                live, seeds[live], dirs[live], spacing[live], phase[live], sf[live], si[live],
+                wanted[live], cell[live]))
+            for r in results:
+                rows = r["rows"]
+                sf[rows], si[rows], wanted[rows], cell[rows] = r["sf"], r["si"], r["wanted"], r["cell"]
+                chunks.append((r["points"], r["t"], r["s"], r["owner"]))
+            live = live[unfinished(si[live])]
+            block[live] = self.layout.blocks_of_bricks(si[live, S.I_WAIT] - 1)
+            if np.any(si[live, S.I_WAIT] <= 0):  # (a worker returns a line only when it waits)
+                raise RuntimeError("a block task returned a line that waits for no brick")
+        pts, t, s, owner = (np.concatenate(c) for c in zip(*chunks))
+        order = np.argsort(owner, kind="stable")  # rounds in order: each line's vertices in order
+        return pts[order], t[order], s[order], owner[order], si
+
+    def _round(self, rows, block, emit, batch: Batch) -> list[dict]:
+        """One task per worker that owns blocks where lines wait; their results."""
+        self._replace_lost_workers()
+        t0 = time.perf_counter()
+        who = self.layout.owner[block]
+        futures = []
+        for w in np.unique(who):
+            pick = np.flatnonzero(who == w)
+            part = Batch(*(getattr(batch, f)[pick] for f in Batch.__dataclass_fields__))
+            futures.append(self.client.submit(
+                advance, self.job, self.layout.owner == w, emit, part,
+                workers=[self.addrs[w]], allow_other_workers=True, retries=self.retries,
+                pure=False, key=f"flowkit-blocks-{self.job.key}-r{self.stats['rounds']}-w{w}"))
+        results = []
+        try:
+            for f in futures:
+                try:
+                    results.append(f.result())
+                except BlockError as e:
+                    raise BlockError(str(e)) from None  # (without the worker's traceback)
+                except Exception as e:
+                    raise JobError(f"block task {f.key} failed after {self.retries} retries: "
+                                   f"{_one_line(e)}") from e
+        except BaseException:
+            for f in futures:
+                f.cancel()
+            raise
+        wall = time.perf_counter() - t0
+        busy = sum(r["seconds"] for r in results)
+        st = self.stats
+        st["rounds"] += 1
+        st["sends"] += rows.size
+        st["busy"] += busy
+        st["slots"] += wall * len(self.addrs)
+        st["loads"] += sum(r["loads"] for r in results)
+        st["bytes_read"] += sum(r["bytes_read"] for r in results)
+        for r in results:
+            self.paths.update(r["paths"])
+        self.per_round.append({"lines": int(rows.size), "tasks": len(results), "wall_s": wall,
+                               "idle_share": max(0.0, 1.0 - busy / (wall * len(self.addrs)))})
+        return results
+
+    def _replace_lost_workers(self):
+        """A worker gone (the nanny starts a new one under a new address): its blocks go to a
+        worker that owns none, else to the first."""
+        live = sorted(self.client.scheduler_info()["workers"])
+        spare = [a for a in live if a not in self.addrs]
+        for i, a in enumerate(self.addrs):
+            if a not in live and live:
+                self.addrs[i] = spare.pop(0) if spare else live[0]
+
+    def reads(self) -> dict:
+        """The Lines.attrs of the job: mode and why, blocks, rounds, handoffs, idle, reads."""
+        st, lay = self.stats, self.layout
+        return {"distribute": "blocks", "distribute_why": self.why, "blocks": lay.n_blocks,
+                "block_bricks": " ".join(str(int(v)) for v in lay.span),
+                "block_workers": len(self.addrs), "block_rounds": st["rounds"],
+                "handoffs_per_line": (st["sends"] - st["lines"]) / max(1, st["lines"]),
+                "idle_share": 1.0 - st["busy"] / st["slots"] if st["slots"] else 0.0,
+                "bricks_read": st["loads"], "field_bytes_read": st["bytes_read"]}
+
+    @property
+    def path(self) -> str:
+        return "; ".join(sorted(self.paths))
+
+
+def trace_blocks(client, source, vector, seeds, out, opts: TraceOptions, why: str, *,
+                 position_dtype="float32", retries: int = 2, timings: dict | None = None,
+                 field=None):
+    """Lines of ``seeds`` through the snapshot ``source`` in block mode, written to ``out``
+    as ``trace_to_file`` writes them (all or nothing).  Returns ``out``."""
+    field = open_field(source, vector) if field is None else field
+    run = BlockRun(client, field, source, vector, opts, why, retries)
+    t0 = time.perf_counter()
+    path = trace_to_file(field, seeds, out, opts, setup=run, batch_seeds=BATCH_LINES,
+                         position_dtype=position_dtype, empty="ignore")
+    if timings is not None:
+        timings.update(tasks=time.perf_counter() - t0, rounds=run.per_round, **run.reads())
+    return path

@@ -1,0 +1,247 @@
+"""Block mode on a LocalCluster of 2 worker processes: the field's blocks owned by workers, lines
+handed between them; the same lines as one process, bit for bit (ABC both ways with attributes,
+a NaN hole across a block face, periodic axes, the heated room); the choice of mode; a killed
+worker; one-line errors and no output where a scheduler, a file or a block fails."""
+
+import os
+import signal
+import threading
+import time
+
+import h5py
+import numpy as np
+import pytest
+import test_distributed
+from test_bricks import SEEDS, _abc_file
+from test_stored_fields import _same
+
+from flowkit import trace
+from flowkit.cli import main
+from flowkit.distributed import JobError, blocks, trace_distributed
+from flowkit.fields import load_field, save_field
+from flowkit.io.lines_h5 import read_lines
+
+L = 2 * np.pi
+client = test_distributed.client  # (the fixture: a LocalCluster of 2 worker processes)
+READS = ("bricks_read", "field_bytes_read", "brick_rounds", "brick_pool_bytes")
+
+
+def _blocks(client, path, seeds, timings=None, **kw):
+    """Lines of block mode (positions kept float64, as in memory) and the serial trace's."""
+    out = path.with_name(path.stem + "_blocks.h5")
+    got = read_lines(trace_distributed(path, seeds, out, client=client, distribute="blocks",
+                                       position_dtype="float64", timings=timings, **kw)[0])
+    whole = trace(load_field(path), seeds, **kw)
+    return whole, got
+
+
+def _same_lines_and_attrs(whole, got):
+    _same(whole, got)
+    mine = {k for k in got.attrs if k not in whole.attrs}
+    assert mine >= {"distribute", "block_rounds", "handoffs_per_line", "idle_share"}
+    # every attribute of the serial trace (options, source, kernel path) but what it read
+    assert {k: str(v) for k, v in whole.attrs.items() if k not in READS} == \
+        {k: str(got.attrs[k]) for k in whole.attrs if k not in READS}
+
+
+CASES = {
+    "forward": {"max_length": 8.0},
+    "both, attributes": {"max_length": 6.0, "direction": "both",
+                         "attributes": ["speed", "velocity", "vorticity", "T", "arc_length",
+                                        "distance_to_seed"]},
+    "backward, resampled": {"max_length": 6.0, "direction": "backward", "count": 30},
+    # a pool of 14 bricks of 27: lines wait for bricks outside the pool as well as the block
+    "small pool": {"max_length": 10.0, "direction": "both", "memory": "110kB"},
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_block_mode_equals_the_serial_trace(client, tmp_path, case):
+    t = {}
+    whole, got = _blocks(client, _abc_file(tmp_path / "abc.h5"), SEEDS, t, **CASES[case])
+    _same_lines_and_attrs(whole, got)
+    # the lines did cross between workers: handed over, round after round
+    assert t["blocks"] >= 2 and t["block_rounds"] >= 2 and t["handoffs_per_line"] > 0
+    assert all(0 <= r["idle_share"] <= 1 for r in t["rounds"]) and len(t["rounds"]) >= 2
+    assert got.attrs["distribute"] == "blocks" and got.attrs["bricks_read"] > 0
+
+
+def test_a_nan_hole_across_a_block_face(client, tmp_path):
+    """The two blocks meet at x node 16 (bricks of 8, 2 bricks per block along x): NaN nodes
+    on both sides end lines there with the serial reasons."""
+    path = _abc_file(tmp_path / "hole.h5", hole=(slice(13, 20), slice(4, 12), slice(4, 20)))
+    t = {}
+    whole, got = _blocks(client, path, SEEDS, t, max_length=10.0, direction="both",
+                         attributes=["speed"])
+    assert t["block_bricks"] == "2 3 3" and t["handoffs_per_line"] > 0, t
+    _same_lines_and_attrs(whole, got)
+    reasons = np.concatenate([got.line_data["reason"], got.line_data["reason_backward"]])
+    assert np.count_nonzero(reasons == 6) >= 5  # (6: a NaN node)
+
+
+def test_periodic_axes(client, tmp_path):
+    path = _abc_file(tmp_path / "abcp.h5", periodic=True)
+    whole, got = _blocks(client, path, SEEDS, max_length=15.0, attributes=["vorticity", "T"])
+    _same_lines_and_attrs(whole, got)
+    assert np.ptp(got.points, axis=0).max() > L  # the lines did cross the seams
+
+
+def test_the_heated_room(client, tmp_path):
+    from flowkit.datasets import hotroom
+
+    fld = hotroom()
+    path = tmp_path / "room.h5"
+    save_field(fld, path)
+    with h5py.File(path, "a") as h:  # chunked in bricks of 16: 3 x 2 x 3 bricks
+        a = h["vectors/U"][...]
+        del h["vectors/U"]
+        h.create_dataset("vectors/U", data=a, chunks=(16, 16, 16, 3))
+    b = fld.grid.bounds
+    seeds = b[:, 0] + (b[:, 1] - b[:, 0]) * np.random.default_rng(2).random((30, 3))
+    t = {}
+    whole, got = _blocks(client, path, seeds, t, max_time=60.0, direction="both",
+                         attributes=["speed", "T"])
+    _same_lines_and_attrs(whole, got)
+    assert t["block_rounds"] >= 2
+
+
+# -- the choice of mode --------------------------------------------------------------------
+class _Info:
+    def __init__(self, *limits):
+        self.limits = limits
+
+    def scheduler_info(self):
+        return {"workers": {f"w{i}": {"memory_limit": m} for i, m in enumerate(self.limits)}}
+
+
+def test_the_choice_of_mode(tmp_path):
+    fld = load_field(_abc_file(tmp_path / "abc.h5"))  # 24^3 x 3 float32: 166 kB
+    assert blocks.choose("auto", fld, _Info(10 ** 9, 10 ** 9), 1)[0] == "seeds"
+    mode, why = blocks.choose("auto", fld, _Info(10 ** 9, 200_000), 1)  # (the smallest counts)
+    assert mode == "blocks" and "166 kB" in why and "does not fit 80%" in why
+    assert "200 kB" in why
+    assert blocks.choose("auto", fld, _Info(0, 0), 1)[1] == "the workers have no memory limit"
+    assert blocks.choose("blocks", fld, _Info(10 ** 9), 1) == ("blocks", "asked for")
+    assert blocks.choose("auto", fld, _Info(1000), 3)[0] == "seeds"  # several snapshots
+    with pytest.raises(ValueError, match="traces one snapshot"):
+        blocks.choose("blocks", fld, _Info(1000), 3)
+    with pytest.raises(ValueError, match="expected one of auto, seeds, blocks"):
+        blocks.choose("domains", fld, _Info(1000), 1)
+
+
+def test_auto_takes_blocks_where_a_worker_cannot_hold_the_field(client, tmp_path, monkeypatch,
+                                                                 capsys):
+    path = _abc_file(tmp_path / "abc.h5")
+    t = {}
+    trace_distributed(path, SEEDS[:10], tmp_path / "s.h5", client=client, max_length=2.0,
+                      timings=t)
+    assert t["distribute"] == "seeds" and "fits" in t["distribute_why"]
+    assert "flowkit: distribute seeds: " in capsys.readouterr().err
+    # workers of 200 kB each (as the client sees them; the pool gets half of that)
+    monkeypatch.setattr(blocks, "worker_memory", lambda c: 200_000)
+    out = trace_distributed(path, SEEDS, tmp_path / "b.h5", client=client, max_length=8.0,
+                            position_dtype="float64")[0]
+    got = read_lines(out)
+    assert got.attrs["distribute"] == "blocks" and "does not fit" in got.attrs["distribute_why"]
+    assert "flowkit: distribute blocks: the field's vector (166 kB) does not fit" in \
+        capsys.readouterr().err
+    _same(trace(load_field(path), SEEDS, max_length=8.0), got)
+
+
+# -- faults and errors -----------------------------------------------------------------------
+def test_a_worker_killed_mid_run_loses_nothing(client, tmp_path):
+    """A worker SIGKILLed while it runs a block task: dask runs the task again (on the other
+    worker, or the one the nanny starts), and the lines are the same."""
+    path = _abc_file(tmp_path / "abc.h5", n=48)
+    seeds = np.random.default_rng(3).random((400, 3)) * L
+    kw = {"max_length": 30.0, "direction": "both"}
+    whole = trace(load_field(path), seeds, **kw)
+    result, killed = {}, []
+
+    def job():
+        result["out"] = trace_distributed(path, seeds, tmp_path / "k.h5", client=client,
+                                          distribute="blocks", position_dtype="float64", **kw)
+
+    th = threading.Thread(target=job)
+    th.start()
+    deadline = time.monotonic() + 120
+    while not killed and time.monotonic() < deadline and th.is_alive():
+        busy = [w for w, keys in client.processing().items()
+                if any("flowkit-blocks" in str(k) for k in keys)]
+        if busy:
+            time.sleep(0.05)  # (into the task)
+            pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
+            os.kill(pid, signal.SIGKILL)
+            killed.append(pid)
+            unfinished = "out" not in result  # the job was still running when the worker died
+        time.sleep(0.01)
+    th.join(180)
+    assert killed and unfinished and not th.is_alive() and "out" in result
+    _same(whole, read_lines(result["out"][0]))
+    client.wait_for_workers(2, timeout=60)
+
+
+def test_an_unreachable_scheduler_is_one_line_and_no_file(tmp_path, capsys):
+    import dask
+
+    path = _abc_file(tmp_path / "abc.h5")
+    out = tmp_path / "x.h5"
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        with pytest.raises(OSError, match=r"dask scheduler tcp://127.0.0.1:9 cannot be reached"):
+            trace_distributed(path, SEEDS, out, scheduler="tcp://127.0.0.1:9",
+                              distribute="blocks")
+        rc = main(["trace", str(path), "-o", str(out), "--seeds", "random:10",
+                   "--max-length", "2", "--scheduler", "tcp://127.0.0.1:9",
+                   "--distribute", "blocks"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and "tcp://127.0.0.1:9 cannot be reached" in err
+    assert list(tmp_path.iterdir()) == [path]
+
+
+def test_a_file_the_workers_cannot_read_is_one_line_and_no_file(client, tmp_path, monkeypatch,
+                                                                capsys):
+    """A relative path the client reads from its folder and the workers, in another, do not
+    find: the error names a worker, its blocks and the file; no output appears."""
+    _abc_file(tmp_path / "abc.h5")
+    monkeypatch.chdir(tmp_path)
+    old = client.run(os.getcwd)
+    client.run(os.chdir, "/")
+    try:
+        rc = main(["trace", "abc.h5", "-o", "x.h5", "--seeds", "random:20", "--max-length",
+                   "4", "--scheduler", client.scheduler.address, "--distribute", "blocks"])
+    finally:
+        for w, d in old.items():
+            client.run(os.chdir, d, workers=[w])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 2  # (the line of the mode, then the error)
+    line = err.splitlines()[-1]
+    assert "worker tcp://" in line and "blocks 0" in line and "abc.h5" in line
+    assert "FileNotFoundError" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["abc.h5"]
+
+
+def test_a_block_that_fails_to_load_is_one_line_and_no_file(client, tmp_path):
+    """One compressed chunk of the file garbled: the worker whose line reaches it names
+    itself, the block, the brick and the file."""
+    n = 56  # (above the typical speed's sample of every node: it reads only near the origin)
+    path = _abc_file(tmp_path / "bad.h5", n=n)
+    with h5py.File(path, "a") as h:
+        a = h["vectors/U"][...]
+        del h["vectors/U"]
+        h.create_dataset("vectors/U", data=a, chunks=(8, 8, 8, 3), compression="gzip")
+    with h5py.File(path, "r") as h:
+        ds = h["vectors/U"]
+        info = ds.id.get_chunk_info_by_coord((40, 40, 40, 0))
+    with open(path, "r+b") as f:
+        f.seek(info.byte_offset + 10)
+        f.write(b"\xff" * 64)
+    seeds = np.full((4, 3), 44.0 * L / (n - 1)) + np.arange(4)[:, None] * 0.01
+    out = tmp_path / "x.h5"
+    with pytest.raises(JobError) as e:
+        trace_distributed(path, seeds, out, client=client, distribute="blocks", max_length=4.0,
+                          retries=0)
+    msg = str(e.value)
+    brick = np.ravel_multi_index((5, 5, 5), (7, 7, 7))
+    assert msg.startswith("worker tcp://") and f"(brick {brick}) of {path} failed to load" in msg
+    assert "\n" not in msg and "block " in msg
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.h5"]
