@@ -25,6 +25,8 @@ from meshes import (
 from flowkit.cli import main
 from flowkit.fields import Grid, ReaderError, load_field
 from flowkit.fields import resample as rs
+from flowkit.fields.mesh import MeshError
+from flowkit.fields.resample import locate
 
 
 def grid_in(lo, hi, n):
@@ -111,6 +113,27 @@ def test_mixed_mesh_with_polyhedra_and_a_cubic_hole(tmp_path):
     assert in_hole.sum() == 11 ** 3
     assert f"{11 ** 3} of {21 ** 3} nodes lie in no cell" in f.notes[0]
     assert "polyhedra split into" in f.notes[0] and "polyhedron" in f.notes[0]
+
+
+def test_opening_locates_nothing_until_an_array_is_read(tmp_path, monkeypatch, capsys):
+    pts, cells = block((4, 4, 4), hole=((1, 1, 1), (3, 3, 3)), kinds="poly")
+    path = write_vtu(tmp_path / "m.vtu", pts, cells)
+    calls = []
+    monkeypatch.setattr(rs, "locate", lambda *a: calls.append(1) or locate(*a))
+    f = load_field(path, resample=(9, 9, 9))
+    assert f.grid.shape == (9, 9, 9) and not calls
+    assert "not located yet" in f.notes[0] and "lie in no cell" not in f.notes[0]
+    assert main(["info", str(path), "--resample", "9,9,9"]) == 0
+    out = capsys.readouterr().out
+    assert "not located yet" in out and not calls
+    assert main(["info", str(path), "--resample", "9,9,9", "--stats"]) == 0
+    out = capsys.readouterr().out
+    assert f"{3 ** 3} of {9 ** 3} nodes lie in no cell" in out and "not located" not in out
+    nan = np.isnan(f.vector[..., 0])  # located once, for every array of the field
+    f.scalars["T"]
+    assert len(calls) == 2 and nan.sum() == 3 ** 3  # (one for info --stats, one here)
+    assert f"{3 ** 3} of {9 ** 3} nodes lie in no cell" in f.notes[0]
+    assert "polyhedra split into" in f.notes[0]
 
 
 def test_lines_end_at_the_hole(tmp_path):
@@ -220,20 +243,22 @@ def test_vtm_and_vtm_series_as_foamtovtk_writes_them(tmp_path):
 # -- bad input -------------------------------------------------------------------------------
 def bad_meshes():
     cube = SINGLE["hex"][0].astype(float)
-    flat = cube.copy()
-    flat[4:, 2] = 0.0  # the top pressed onto the bottom
+    flat = np.concatenate([cube, cube + [2, 0, 0]])
+    flat[12:, 2] = 0.0  # the second cube's top pressed onto its bottom
     inverted = [4, 5, 6, 7, 0, 1, 2, 3]  # top listed first
     faces = cube_faces(list(range(8)))
     return {
         "inverted": (cube, [(HEX, list(range(8))), (HEX, inverted)],
                      r"cell 1 \(hexahedron\) is inverted"),
-        "degenerate": (flat, [(HEX, list(range(8)))], r"cell 0 \(hexahedron\) is degenerate"),
+        "degenerate": (flat, [(HEX, list(range(8))), (HEX, list(range(8, 16)))],
+                       r"cell 1 \(hexahedron\) is degenerate"),
         "open": (cube, [(HEX, list(range(8))), (POLY, faces[:5])],
                  r"cell 1 \(polyhedron\): .*open faces"),
         "wedge_inverted": (SINGLE["wedge"][0], [(WEDGE, [0, 2, 1, 3, 5, 4])],
                            r"cell 0 \(wedge\) is inverted"),
-        "flat_tet": ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], [(TET, [0, 1, 2, 3])],
-                     r"cell 0 \(tetrahedron\) is degenerate"),
+        "flat_tet": ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0, 0, 1]],
+                     [(TET, [0, 1, 2, 4]), (TET, [0, 1, 2, 3])],
+                     r"cell 1 \(tetrahedron\) is degenerate"),
     }
 
 
@@ -241,11 +266,22 @@ def bad_meshes():
 def test_bad_cells_are_named(tmp_path, name, capsys):
     pts, cells, msg = bad_meshes()[name]
     path = write_vtu(tmp_path / f"{name}.vtu", np.asarray(pts, float) + [0, 0, 0.01], cells)
-    with pytest.raises(ReaderError, match=rf"{name}\.vtu: {msg}"):
-        load_field(path, resample=(3, 3, 3))
-    assert main(["info", str(path), "--resample", "3,3,3"]) == 2
+    f = load_field(path, resample=(3, 3, 3))  # opening reads the XML: cells checked when read
+    with pytest.raises(MeshError, match=rf"{name}\.vtu: {msg}"):
+        _ = f.vector
+    assert main(["info", str(path), "--resample", "3,3,3"]) == 0
+    assert "cells are split and checked" in capsys.readouterr().out
+    assert main(["info", str(path), "--resample", "3,3,3", "--stats"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"{name}.vtu: cell" in err and "Traceback" not in err
+
+
+def test_a_flat_mesh_is_named_when_opened(tmp_path):
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.7, 0.6, 0]], float)  # (no lattice)
+    path = write_vtu(tmp_path / "flat.vtu", pts, [(TET, [0, 1, 2, 3])])
+    with pytest.raises(ReaderError, match=r"flat\.vtu: every point lies at z = 0: the mesh has "
+                                          "no volume"):
+        load_field(path)
 
 
 def test_no_vector_data_is_named(tmp_path):
