@@ -218,16 +218,22 @@ def test_a_lattice_of_nodes_is_kept_unless_resample_is_given(tmp_path):
     assert g.grid.shape == (7, 5, 5) and not check_linear(g).any()
 
 
-def test_vtm_and_vtm_series_as_foamtovtk_writes_them(tmp_path):
-    pts, cells = block((2, 2, 2), kinds="poly")
-    (tmp_path / "case_5" / "boundary").mkdir(parents=True)
-    write_vtu(tmp_path / "case_5" / "internal.vtu", pts, cells)
-    (tmp_path / "case_5" / "boundary" / "inlet.vtp").write_text("<VTKFile/>")
-    (tmp_path / "case_5.vtm").write_text(
+def write_vtm(folder, pts, cells, **data):
+    """folder/case_5.vtm as foamToVTK writes it: its internal mesh and an inlet patch."""
+    (folder / "case_5" / "boundary").mkdir(parents=True, exist_ok=True)
+    write_vtu(folder / "case_5" / "internal.vtu", pts, cells, **data)
+    (folder / "case_5" / "boundary" / "inlet.vtp").write_text("<VTKFile/>")
+    (folder / "case_5.vtm").write_text(
         "<?xml version='1.0'?>\n<VTKFile type='vtkMultiBlockDataSet' version='1.0'>"
         "<vtkMultiBlockDataSet><DataSet name='internal' file='case_5/internal.vtu' />"
         "<Block name='boundary'><DataSet name='inlet' file='case_5/boundary/inlet.vtp' />"
         "</Block></vtkMultiBlockDataSet></VTKFile>")
+    return folder / "case_5.vtm"
+
+
+def test_vtm_and_vtm_series_as_foamtovtk_writes_them(tmp_path):
+    pts, cells = block((2, 2, 2), kinds="poly")
+    write_vtm(tmp_path, pts, cells)
     (tmp_path / "case.vtm.series").write_text(json.dumps(
         {"file-series-version": "1.0", "files": [{"name": "case_5.vtm", "time": 5}]}))
     f = load_field(tmp_path / "case_5.vtm", resample=(5, 5, 5))
@@ -330,3 +336,24 @@ def test_a_scene_resamples_its_mesh_as_its_field_says(tmp_path):
     (tmp_path / "s.toml").write_text(text.format("5,6"))
     with pytest.raises(SceneError, match=r"resample.*NX,NY,NZ"):
         load_scene(tmp_path / "s.toml")
+
+
+def test_a_changed_vtm_piece_misses_the_scene_cache(tmp_path):
+    """The .vtm only names its pieces: the lines depend on the internal .vtu's bytes."""
+    from flowkit.scene import LinesCache, load_scene, make_plan
+
+    pts, cells = block((2, 2, 2), kinds="poly")
+    write_vtm(tmp_path, pts, cells)
+    (tmp_path / "s.toml").write_text(
+        'version = 1\n[field]\nfile = "case_5.vtm"\nresample = "5,5,5"\n[seeds]\n'
+        'spec = "line:0.5,0.5,0.5:1.5,0.5,0.5:3"\n[styles.a]\n[[styles.a.bands]]\nwidth = 2\n')
+    plan = make_plan(load_scene(tmp_path / "s.toml"))
+
+    def key():
+        cache = LinesCache(tmp_path / "cache")  # (a new one: no digest remembered)
+        return cache.key(cache.inputs(plan, plan.snapshots[0]))
+
+    before = key()
+    vtm = (tmp_path / "case_5.vtm").read_bytes()
+    write_vtm(tmp_path, pts, cells, point_data={"U": 2 * linear_u(pts), "T": linear_t(pts)})
+    assert (tmp_path / "case_5.vtm").read_bytes() == vtm and key() != before
