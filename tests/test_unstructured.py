@@ -331,7 +331,7 @@ def test_a_scene_resamples_its_mesh_as_its_field_says(tmp_path):
     (tmp_path / "s.toml").write_text(text.format("5,6,7"))
     scene = load_scene(tmp_path / "s.toml")
     snap = make_plan(scene).snapshots[0]
-    f = snap.load(scene.field.vector, scene.field.resample)
+    f = snap.load(scene.field.vector, **scene.field.load_options)
     assert f.grid.shape == (5, 6, 7) and not check_linear(f).any()
     (tmp_path / "s.toml").write_text(text.format("5,6"))
     with pytest.raises(SceneError, match=r"resample.*NX,NY,NZ"):
@@ -357,3 +357,40 @@ def test_a_changed_vtm_piece_misses_the_scene_cache(tmp_path):
     vtm = (tmp_path / "case_5.vtm").read_bytes()
     write_vtm(tmp_path, pts, cells, point_data={"U": 2 * linear_u(pts), "T": linear_t(pts)})
     assert (tmp_path / "case_5.vtm").read_bytes() == vtm and key() != before
+
+
+def test_cell_data_wherever_resample_is_taken(tmp_path, capsys):
+    """--data cell on trace and sample (as on info and resample), data = "cell" in a scene:
+    point data U is 5 along x, cell data 1 and 2 in the two cells."""
+    from flowkit.io.lines_h5 import read_lines
+    from flowkit.scene import load_scene, make_plan
+    from flowkit.scene.model import SceneError
+
+    pts, cells = block((2, 1, 1))
+    path = write_vtu(tmp_path / "c.vtu", pts + [0, 0.1, 0], cells,
+                     point_data={"U": np.tile([5.0, 0, 0], (len(pts), 1))},
+                     cell_data={"U": [[1.0, 0, 0], [2.0, 0, 0]]})
+    out = tmp_path / "l.h5"
+    seed = ["--seeds", "line:0.2,0.5,0.5:0.2,0.6,0.5:2", "--max-length", "1.5", "--quiet",
+            "--attributes", "speed", "--resample", "9,3,3"]
+    assert main(["trace", str(path), "-o", str(out), *seed]) == 0
+    assert np.allclose(read_lines(out).point_data["speed"], 5.0)
+    assert main(["trace", str(path), "-o", str(out), *seed, "--data", "cell"]) == 0
+    speed = read_lines(out).point_data["speed"]
+    assert speed.min() == 1.0 and speed.max() <= 2.0
+    out2 = tmp_path / "s.h5"
+    assert main(["sample", str(out), str(path), "--attributes", "speed", "-o", str(out2),
+                 "--rename", "speed=cell_speed", "--data", "cell", "--resample", "9,3,3"]) == 0
+    # (at the float32 vertices the file holds: to their rounding)
+    np.testing.assert_allclose(read_lines(out2).point_data["cell_speed"], speed, rtol=1e-6)
+    capsys.readouterr()
+    text = ('version = 1\n[field]\nfile = "c.vtu"\nresample = "9,3,3"\ndata = "{}"\n'
+            '[seeds]\nspec = "line:0.5,0.5,0.5:1.5,0.5,0.5:3"\n[styles.a]\n'
+            '[[styles.a.bands]]\nwidth = 2\n')
+    (tmp_path / "s.toml").write_text(text.format("cell"))
+    scene = load_scene(tmp_path / "s.toml")
+    f = make_plan(scene).snapshots[0].load(scene.field.vector, **scene.field.load_options)
+    assert set(np.unique(f.vector[..., 0])) == {1.0, 2.0}
+    (tmp_path / "s.toml").write_text(text.format("cells"))
+    with pytest.raises(SceneError, match=r"data.*\"point\" or \"cell\""):
+        load_scene(tmp_path / "s.toml")

@@ -81,7 +81,7 @@ def run(args) -> int:
 
     if scale.wanted(args):  # --workers, --scheduler, series, pathlines: flowkit/distributed/cli.py
         if mesh_options(args):
-            raise CLIError("flowkit trace: --resample and --block read one mesh; for series and "
+            raise CLIError("flowkit trace: --resample, --block and --data read one mesh; for series and "
                            "workers, resample each snapshot once (flowkit resample MESH -o "
                            "FIELD.h5) and trace those files")
         if even is not None or args.prune:

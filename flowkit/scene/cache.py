@@ -106,8 +106,7 @@ class LinesCache:
                  "vector": plan.scene.field.vector}
         if Path(path).suffix.lower() == ".vtm":  # (names the .vtu it reads: that holds the data)
             field["block_digest"] = self._digest(vtm_block(path))
-        if plan.scene.field.resample is not None:  # (absent otherwise: older keys stay valid)
-            field["resample"] = plan.scene.field.resample
+        field.update(plan.scene.field.load_options)  # (only those given: older keys stay valid)
         return {"field": field,
                 "seeds": seed_in, "trace": opts, "flowkit": __version__, "code": code_digest()}
 

@@ -205,7 +205,7 @@ def _run_snapshot(plan: Plan, snap: Snapshot, cache: LinesCache | None, out: Pat
             lines = cache.read(entry, plan.attributes)
     else:
         with _Stage(res, "load field", report) as st:
-            fld = snap.load(scene.field.vector, scene.field.resample)
+            fld = snap.load(scene.field.vector, **scene.field.load_options)
             seeds = plan.seed_points(fld)
             st.msg = f"{fld.grid.shape} nodes, " + (
                 f"{len(seeds)} seeds" if seeds is not None else "evenly spaced seeding")
