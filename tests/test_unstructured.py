@@ -394,3 +394,29 @@ def test_cell_data_wherever_resample_is_taken(tmp_path, capsys):
     (tmp_path / "s.toml").write_text(text.format("cells"))
     with pytest.raises(SceneError, match=r"data.*\"point\" or \"cell\""):
         load_scene(tmp_path / "s.toml")
+
+
+def test_a_scene_on_workers_resamples_as_its_field_says(tmp_path, monkeypatch):
+    """Snapshots traced on Dask workers are loaded with the scene's resample and data."""
+    import flowkit.distributed as dist
+    from flowkit.scene import run_scene
+
+    pts, cells = block((2, 2, 2), kinds="poly")
+    for i in range(2):
+        write_vtu(tmp_path / f"m_{i}.vtu", pts, cells)
+    (tmp_path / "m.series").write_text(json.dumps({"file-series-version": "1.0", "files": [
+        {"name": f"m_{i}.vtu", "time": float(i)} for i in range(2)]}))
+    (tmp_path / "s.toml").write_text(
+        'version = 1\n[field]\nseries = "m.series"\nresample = "5,6,7"\ndata = "point"\n'
+        '[seeds]\nspec = "line:0.5,0.5,0.5:1.5,0.5,0.5:3"\n[styles.a]\n[[styles.a.bands]]\n'
+        'width = 2\n')
+    seen = {}
+
+    def fake(*a, **kw):
+        seen.update(kw)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(dist, "trace_distributed", fake)
+    with pytest.raises(RuntimeError, match="stop here"):
+        run_scene(tmp_path / "s.toml", workers=2, use_cache=False, report=lambda *a: None)
+    assert seen["load"] == {"resample": "5,6,7", "data": "point"}
