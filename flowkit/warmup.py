@@ -140,8 +140,8 @@ def _meshes() -> None:
     """A hexahedron and a polyhedron beside it (the cube, its faces in VTK 9.4's layout too)
     resampled: the kernels of fields/mesh.py and fields/resample.py, whatever the mesh (they
     read int64 and float64 arrays only)."""
-    from .fields.mesh import Mesh, cube_faces, elements, legacy_faces
-    from .fields.resample import Resampled, auto_grid, locate
+    from .fields.mesh import Mesh, cube_faces, legacy_faces
+    from .fields.resample import Location, Resampled, auto_grid
 
     pts = np.array([[x, y, z] for z in (0.0, 1.0) for y in (0.0, 1.0) for x in (0.0, 1.0, 2.0)])
     hexa = [0, 1, 4, 3, 6, 7, 10, 9]
@@ -151,10 +151,9 @@ def _meshes() -> None:
     stream, starts = legacy_faces(np.concatenate(faces), f_ends, np.arange(6), np.array([0, 6]))
     mesh = Mesh(pts, np.array(hexa + cube), np.array([0, 8, 16]), np.array([12, 42]),
                 stream, starts)
-    el = elements(mesh)
-    grid, _ = auto_grid(el, np.array([[0.0, 2.0], [0.0, 1.0], [0.0, 1.0]]), ("shape", (5, 3, 3)))
-    owner, rst = locate(el, grid)
-    Resampled(el, owner, rst, pts[:, 0]).fill(np.empty(grid.shape), 0, grid.shape[0])
+    grid, _ = auto_grid(mesh, np.array([[0.0, 2.0], [0.0, 1.0], [0.0, 1.0]]), ("shape", (5, 3, 3)))
+    where = Location(mesh, grid, "", "point", "warm-up mesh")
+    Resampled(where, pts[:, 0]).fill(np.empty(grid.shape), 0, grid.shape[0])
 
 
 def _render(plan, lines) -> None:

@@ -166,11 +166,11 @@ def test_failed_task_is_retried_and_reported(tmp_path, monkeypatch):
     calls = []
     real = T.open_field
 
-    def flaky(source, vector):
+    def flaky(source, vector, load=None):
         calls.append(source)
         if len(calls) == 1:
             raise OSError("transient read error")
-        return real(source, vector)
+        return real(source, vector, load)
 
     monkeypatch.setattr(T, "open_field", flaky)
     seeds = _seeds(300, 4)
@@ -183,7 +183,7 @@ def test_failed_task_is_retried_and_reported(tmp_path, monkeypatch):
         _same(ref, read_lines(out[0]))
         assert len(calls) == 2
         calls.clear()
-        monkeypatch.setattr(T, "open_field", lambda s, v: (_ for _ in ()).throw(OSError("gone")))
+        monkeypatch.setattr(T, "open_field", lambda *a: (_ for _ in ()).throw(OSError("gone")))
         with pytest.raises(JobError, match=r"task s00000-c0000000 failed after 0 retries.*gone"):
             trace_distributed(hotroom_path(), seeds, tmp_path / "e.h5", OPTS, client=c,
                               snapshots=[0], chunk_seeds=300, retries=0)
@@ -269,3 +269,48 @@ def test_local_cluster_started_for_the_job(tmp_path):
     assert timings["n_tasks"] == 2 and timings["task_cpu"] > 0
     with pytest.raises(ValueError, match="workers must be at least 1"):
         trace_distributed(hotroom_path(), seeds, tmp_path / "e.h5", workers=0)
+
+
+def test_a_mesh_is_resampled_on_the_workers(client, tmp_path, capsys):
+    """--resample (and --data) with a series, workers, blocks and pathlines: each worker resamples
+    the snapshots it traces, onto the grid one process uses."""
+    import json
+
+    from meshes import block, linear_u, write_vtu
+
+    from flowkit.cli import main
+    from flowkit.integrate.seeds import parse_seed_spec
+
+    pts, cells = block((4, 4, 4), hole=((1, 1, 1), (3, 3, 3)), kinds="poly")
+    rot = np.stack([-(pts[:, 1] - 2), pts[:, 0] - 2, np.full(len(pts), 0.3)], -1)
+    for i, u in enumerate((rot, rot + 0.1 * linear_u(pts))):
+        write_vtu(tmp_path / f"m_{i}.vtu", pts, cells, point_data={"U": u},
+                  cell_data={"U": np.full((len(cells), 3), 0.2 + i)})
+    (tmp_path / "m.series").write_text(json.dumps({"file-series-version": "1.0", "files": [
+        {"name": f"m_{i}.vtu", "time": float(i)} for i in range(2)]}))
+    address = client.scheduler.address
+    common = ["--seeds", "random:40:3", "--max-length", "6", "--scheduler", address, "--quiet"]
+    for load in ({"resample": "13,13,13"}, {"resample": "spacing:0.5", "data": "cell"}):
+        flags = [f for k, v in load.items() for f in (f"--{k}", v)]
+        out = tmp_path / "s.h5"
+        assert main(["trace", str(tmp_path / "m.series"), "-o", str(out), *common, *flags]) == 0
+        lines = read_lines(out)
+        snap = lines.line_data.pop("snapshot")
+        for i in range(2):
+            f = load_field(tmp_path / f"m_{i}.vtu", **load)
+            ref = read_lines(trace_to_file(f, parse_seed_spec("random:40:3", f),
+                                           tmp_path / "ref.h5", TraceOptions(max_length=6)))
+            assert lines[snap == i].equals(ref, rtol=0, atol=1e-6)
+    f0 = load_field(tmp_path / "m_0.vtu", resample="13,13,13")
+    seeds = parse_seed_spec("random:40:3", f0)
+    out = tmp_path / "b.h5"
+    assert main(["trace", str(tmp_path / "m_0.vtu"), "-o", str(out), *common,
+                 "--resample", "13,13,13", "--distribute", "blocks"]) == 0
+    ref = read_lines(trace_to_file(f0, seeds, tmp_path / "ref.h5", TraceOptions(max_length=6)))
+    assert read_lines(out).equals(ref, rtol=0, atol=1e-6)
+    out = tmp_path / "p.h5"
+    assert main(["trace", str(tmp_path / "m.series"), "-o", str(out), *common, "--pathlines",
+                 "--resample", "13,13,13"]) == 0
+    ref = pathlines(tmp_path / "m.series", seeds, 0.0, TraceOptions(max_length=6),
+                    load={"resample": "13,13,13"})
+    assert read_lines(out).equals(ref, rtol=0, atol=1e-5)

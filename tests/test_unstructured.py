@@ -25,6 +25,8 @@ from meshes import (
 from flowkit.cli import main
 from flowkit.fields import Grid, ReaderError, load_field
 from flowkit.fields import resample as rs
+from flowkit.fields.mesh import MeshError
+from flowkit.fields.resample import locate
 
 
 def grid_in(lo, hi, n):
@@ -113,6 +115,27 @@ def test_mixed_mesh_with_polyhedra_and_a_cubic_hole(tmp_path):
     assert "polyhedra split into" in f.notes[0] and "polyhedron" in f.notes[0]
 
 
+def test_opening_locates_nothing_until_an_array_is_read(tmp_path, monkeypatch, capsys):
+    pts, cells = block((4, 4, 4), hole=((1, 1, 1), (3, 3, 3)), kinds="poly")
+    path = write_vtu(tmp_path / "m.vtu", pts, cells)
+    calls = []
+    monkeypatch.setattr(rs, "locate", lambda *a: calls.append(1) or locate(*a))
+    f = load_field(path, resample=(9, 9, 9))
+    assert f.grid.shape == (9, 9, 9) and not calls
+    assert "not located yet" in f.notes[0] and "lie in no cell" not in f.notes[0]
+    assert main(["info", str(path), "--resample", "9,9,9"]) == 0
+    out = capsys.readouterr().out
+    assert "not located yet" in out and not calls
+    assert main(["info", str(path), "--resample", "9,9,9", "--stats"]) == 0
+    out = capsys.readouterr().out
+    assert f"{3 ** 3} of {9 ** 3} nodes lie in no cell" in out and "not located" not in out
+    nan = np.isnan(f.vector[..., 0])  # located once, for every array of the field
+    f.scalars["T"]
+    assert len(calls) == 2 and nan.sum() == 3 ** 3  # (one for info --stats, one here)
+    assert f"{3 ** 3} of {9 ** 3} nodes lie in no cell" in f.notes[0]
+    assert "polyhedra split into" in f.notes[0]
+
+
 def test_lines_end_at_the_hole(tmp_path):
     from flowkit import trace
     from flowkit.integrate.reasons import Reason
@@ -195,16 +218,22 @@ def test_a_lattice_of_nodes_is_kept_unless_resample_is_given(tmp_path):
     assert g.grid.shape == (7, 5, 5) and not check_linear(g).any()
 
 
-def test_vtm_and_vtm_series_as_foamtovtk_writes_them(tmp_path):
-    pts, cells = block((2, 2, 2), kinds="poly")
-    (tmp_path / "case_5" / "boundary").mkdir(parents=True)
-    write_vtu(tmp_path / "case_5" / "internal.vtu", pts, cells)
-    (tmp_path / "case_5" / "boundary" / "inlet.vtp").write_text("<VTKFile/>")
-    (tmp_path / "case_5.vtm").write_text(
+def write_vtm(folder, pts, cells, **data):
+    """folder/case_5.vtm as foamToVTK writes it: its internal mesh and an inlet patch."""
+    (folder / "case_5" / "boundary").mkdir(parents=True, exist_ok=True)
+    write_vtu(folder / "case_5" / "internal.vtu", pts, cells, **data)
+    (folder / "case_5" / "boundary" / "inlet.vtp").write_text("<VTKFile/>")
+    (folder / "case_5.vtm").write_text(
         "<?xml version='1.0'?>\n<VTKFile type='vtkMultiBlockDataSet' version='1.0'>"
         "<vtkMultiBlockDataSet><DataSet name='internal' file='case_5/internal.vtu' />"
         "<Block name='boundary'><DataSet name='inlet' file='case_5/boundary/inlet.vtp' />"
         "</Block></vtkMultiBlockDataSet></VTKFile>")
+    return folder / "case_5.vtm"
+
+
+def test_vtm_and_vtm_series_as_foamtovtk_writes_them(tmp_path):
+    pts, cells = block((2, 2, 2), kinds="poly")
+    write_vtm(tmp_path, pts, cells)
     (tmp_path / "case.vtm.series").write_text(json.dumps(
         {"file-series-version": "1.0", "files": [{"name": "case_5.vtm", "time": 5}]}))
     f = load_field(tmp_path / "case_5.vtm", resample=(5, 5, 5))
@@ -220,20 +249,22 @@ def test_vtm_and_vtm_series_as_foamtovtk_writes_them(tmp_path):
 # -- bad input -------------------------------------------------------------------------------
 def bad_meshes():
     cube = SINGLE["hex"][0].astype(float)
-    flat = cube.copy()
-    flat[4:, 2] = 0.0  # the top pressed onto the bottom
+    flat = np.concatenate([cube, cube + [2, 0, 0]])
+    flat[12:, 2] = 0.0  # the second cube's top pressed onto its bottom
     inverted = [4, 5, 6, 7, 0, 1, 2, 3]  # top listed first
     faces = cube_faces(list(range(8)))
     return {
         "inverted": (cube, [(HEX, list(range(8))), (HEX, inverted)],
                      r"cell 1 \(hexahedron\) is inverted"),
-        "degenerate": (flat, [(HEX, list(range(8)))], r"cell 0 \(hexahedron\) is degenerate"),
+        "degenerate": (flat, [(HEX, list(range(8))), (HEX, list(range(8, 16)))],
+                       r"cell 1 \(hexahedron\) is degenerate"),
         "open": (cube, [(HEX, list(range(8))), (POLY, faces[:5])],
                  r"cell 1 \(polyhedron\): .*open faces"),
         "wedge_inverted": (SINGLE["wedge"][0], [(WEDGE, [0, 2, 1, 3, 5, 4])],
                            r"cell 0 \(wedge\) is inverted"),
-        "flat_tet": ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], [(TET, [0, 1, 2, 3])],
-                     r"cell 0 \(tetrahedron\) is degenerate"),
+        "flat_tet": ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0, 0, 1]],
+                     [(TET, [0, 1, 2, 4]), (TET, [0, 1, 2, 3])],
+                     r"cell 1 \(tetrahedron\) is degenerate"),
     }
 
 
@@ -241,11 +272,22 @@ def bad_meshes():
 def test_bad_cells_are_named(tmp_path, name, capsys):
     pts, cells, msg = bad_meshes()[name]
     path = write_vtu(tmp_path / f"{name}.vtu", np.asarray(pts, float) + [0, 0, 0.01], cells)
-    with pytest.raises(ReaderError, match=rf"{name}\.vtu: {msg}"):
-        load_field(path, resample=(3, 3, 3))
-    assert main(["info", str(path), "--resample", "3,3,3"]) == 2
+    f = load_field(path, resample=(3, 3, 3))  # opening reads the XML: cells checked when read
+    with pytest.raises(MeshError, match=rf"{name}\.vtu: {msg}"):
+        _ = f.vector
+    assert main(["info", str(path), "--resample", "3,3,3"]) == 0
+    assert "cells are split and checked" in capsys.readouterr().out
+    assert main(["info", str(path), "--resample", "3,3,3", "--stats"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"{name}.vtu: cell" in err and "Traceback" not in err
+
+
+def test_a_flat_mesh_is_named_when_opened(tmp_path):
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.7, 0.6, 0]], float)  # (no lattice)
+    path = write_vtu(tmp_path / "flat.vtu", pts, [(TET, [0, 1, 2, 3])])
+    with pytest.raises(ReaderError, match=r"flat\.vtu: every point lies at z = 0: the mesh has "
+                                          "no volume"):
+        load_field(path)
 
 
 def test_no_vector_data_is_named(tmp_path):
@@ -289,8 +331,92 @@ def test_a_scene_resamples_its_mesh_as_its_field_says(tmp_path):
     (tmp_path / "s.toml").write_text(text.format("5,6,7"))
     scene = load_scene(tmp_path / "s.toml")
     snap = make_plan(scene).snapshots[0]
-    f = snap.load(scene.field.vector, scene.field.resample)
+    f = snap.load(scene.field.vector, **scene.field.load_options)
     assert f.grid.shape == (5, 6, 7) and not check_linear(f).any()
     (tmp_path / "s.toml").write_text(text.format("5,6"))
     with pytest.raises(SceneError, match=r"resample.*NX,NY,NZ"):
         load_scene(tmp_path / "s.toml")
+
+
+def test_a_changed_vtm_piece_misses_the_scene_cache(tmp_path):
+    """The .vtm only names its pieces: the lines depend on the internal .vtu's bytes."""
+    from flowkit.scene import LinesCache, load_scene, make_plan
+
+    pts, cells = block((2, 2, 2), kinds="poly")
+    write_vtm(tmp_path, pts, cells)
+    (tmp_path / "s.toml").write_text(
+        'version = 1\n[field]\nfile = "case_5.vtm"\nresample = "5,5,5"\n[seeds]\n'
+        'spec = "line:0.5,0.5,0.5:1.5,0.5,0.5:3"\n[styles.a]\n[[styles.a.bands]]\nwidth = 2\n')
+    plan = make_plan(load_scene(tmp_path / "s.toml"))
+
+    def key():
+        cache = LinesCache(tmp_path / "cache")  # (a new one: no digest remembered)
+        return cache.key(cache.inputs(plan, plan.snapshots[0]))
+
+    before = key()
+    vtm = (tmp_path / "case_5.vtm").read_bytes()
+    write_vtm(tmp_path, pts, cells, point_data={"U": 2 * linear_u(pts), "T": linear_t(pts)})
+    assert (tmp_path / "case_5.vtm").read_bytes() == vtm and key() != before
+
+
+def test_cell_data_wherever_resample_is_taken(tmp_path, capsys):
+    """--data cell on trace and sample (as on info and resample), data = "cell" in a scene:
+    point data U is 5 along x, cell data 1 and 2 in the two cells."""
+    from flowkit.io.lines_h5 import read_lines
+    from flowkit.scene import load_scene, make_plan
+    from flowkit.scene.model import SceneError
+
+    pts, cells = block((2, 1, 1))
+    path = write_vtu(tmp_path / "c.vtu", pts + [0, 0.1, 0], cells,
+                     point_data={"U": np.tile([5.0, 0, 0], (len(pts), 1))},
+                     cell_data={"U": [[1.0, 0, 0], [2.0, 0, 0]]})
+    out = tmp_path / "l.h5"
+    seed = ["--seeds", "line:0.2,0.5,0.5:0.2,0.6,0.5:2", "--max-length", "1.5", "--quiet",
+            "--attributes", "speed", "--resample", "9,3,3"]
+    assert main(["trace", str(path), "-o", str(out), *seed]) == 0
+    assert np.allclose(read_lines(out).point_data["speed"], 5.0)
+    assert main(["trace", str(path), "-o", str(out), *seed, "--data", "cell"]) == 0
+    speed = read_lines(out).point_data["speed"]
+    assert speed.min() == 1.0 and speed.max() <= 2.0
+    out2 = tmp_path / "s.h5"
+    assert main(["sample", str(out), str(path), "--attributes", "speed", "-o", str(out2),
+                 "--rename", "speed=cell_speed", "--data", "cell", "--resample", "9,3,3"]) == 0
+    # (at the float32 vertices the file holds: to their rounding)
+    np.testing.assert_allclose(read_lines(out2).point_data["cell_speed"], speed, rtol=1e-6)
+    capsys.readouterr()
+    text = ('version = 1\n[field]\nfile = "c.vtu"\nresample = "9,3,3"\ndata = "{}"\n'
+            '[seeds]\nspec = "line:0.5,0.5,0.5:1.5,0.5,0.5:3"\n[styles.a]\n'
+            '[[styles.a.bands]]\nwidth = 2\n')
+    (tmp_path / "s.toml").write_text(text.format("cell"))
+    scene = load_scene(tmp_path / "s.toml")
+    f = make_plan(scene).snapshots[0].load(scene.field.vector, **scene.field.load_options)
+    assert set(np.unique(f.vector[..., 0])) == {1.0, 2.0}
+    (tmp_path / "s.toml").write_text(text.format("cells"))
+    with pytest.raises(SceneError, match=r"data.*\"point\" or \"cell\""):
+        load_scene(tmp_path / "s.toml")
+
+
+def test_a_scene_on_workers_resamples_as_its_field_says(tmp_path, monkeypatch):
+    """Snapshots traced on Dask workers are loaded with the scene's resample and data."""
+    import flowkit.distributed as dist
+    from flowkit.scene import run_scene
+
+    pts, cells = block((2, 2, 2), kinds="poly")
+    for i in range(2):
+        write_vtu(tmp_path / f"m_{i}.vtu", pts, cells)
+    (tmp_path / "m.series").write_text(json.dumps({"file-series-version": "1.0", "files": [
+        {"name": f"m_{i}.vtu", "time": float(i)} for i in range(2)]}))
+    (tmp_path / "s.toml").write_text(
+        'version = 1\n[field]\nseries = "m.series"\nresample = "5,6,7"\ndata = "point"\n'
+        '[seeds]\nspec = "line:0.5,0.5,0.5:1.5,0.5,0.5:3"\n[styles.a]\n[[styles.a.bands]]\n'
+        'width = 2\n')
+    seen = {}
+
+    def fake(*a, **kw):
+        seen.update(kw)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(dist, "trace_distributed", fake)
+    with pytest.raises(RuntimeError, match="stop here"):
+        run_scene(tmp_path / "s.toml", workers=2, use_cache=False, report=lambda *a: None)
+    assert seen["load"] == {"resample": "5,6,7", "data": "point"}

@@ -32,9 +32,6 @@ def register(subparsers) -> None:
         "--snapshot", type=int, help="snapshot position in a series (negative: from the end)"
     )
     p.add_argument("--time", type=float, help="snapshot time in a series")
-    p.add_argument(
-        "--data", choices=["point", "cell"], help="VTK files: point data (default) or cell data"
-    )
     add_mesh_options(p)
     p.add_argument("--stats", action="store_true",
                    help="ranges and NaN/inf counts of every array (reads the data, a slab at a "
@@ -54,7 +51,7 @@ def run(args) -> int:
         raise CLIError("flowkit info: give a FILE (or --devices)")
     print(
         describe(
-            args.file, vector=args.vector, snapshot=args.snapshot, time=args.time, data=args.data,
+            args.file, vector=args.vector, snapshot=args.snapshot, time=args.time,
             stats=args.stats, **mesh_options(args),
         )
     )

@@ -14,9 +14,6 @@ def register(subparsers) -> None:
     p.add_argument("mesh", help="unstructured mesh (.vtu, .vtm, .series)")
     p.add_argument("-o", "--output", required=True, help="field file to write (.h5 .npz .vti .vtr)")
     p.add_argument("--vector", default="U", help="vector array name (default U)")
-    p.add_argument("--data", choices=["point", "cell"], default="point",
-                   help="point data (default, interpolated in each cell) or cell data "
-                        "(each cell's value, constant in the cell)")
     p.add_argument("--snapshot", type=int, help="snapshot position in a series")
     p.add_argument("--time", type=float, help="snapshot time in a series")
     p.add_argument("--float64", action="store_true",
@@ -33,10 +30,10 @@ def run(args) -> int:
 
     opts = {k: v for k, v in (("snapshot", args.snapshot), ("time", args.time)) if v is not None}
     t0 = time.perf_counter()
-    field = load_field(args.mesh, vector=args.vector, data=args.data, **opts,
+    field = load_field(args.mesh, vector=args.vector, **opts,
                        **mesh_options(args))
-    dt = time.perf_counter() - t0
     out = save_field(field, args.output, dtype="float64" if args.float64 else field.dtype)
-    print(f"{out}: {' x '.join(map(str, field.grid.shape))} grid in {dt:.2f} s; "
-          f"{field.notes[0]}")
+    dt = time.perf_counter() - t0  # (located and interpolated as the arrays are written)
+    print(f"{out}: {' x '.join(map(str, field.grid.shape))} grid, read, resampled and written "
+          f"in {dt:.2f} s; {field.notes[0]}")
     return 0

@@ -80,10 +80,6 @@ def run(args) -> int:
     from ..distributed import cli as scale
 
     if scale.wanted(args):  # --workers, --scheduler, series, pathlines: flowkit/distributed/cli.py
-        if mesh_options(args):
-            raise CLIError("flowkit trace: --resample and --block read one mesh; for series and "
-                           "workers, resample each snapshot once (flowkit resample MESH -o "
-                           "FIELD.h5) and trace those files")
         if even is not None or args.prune:
             raise CLIError("flowkit trace: --seeds even and --prune place lines against each "
                            "other in one process; they do not run on workers, series or pathlines")

@@ -125,6 +125,7 @@ class Job:
     span: tuple
     budget: int  # bytes of a worker's pool
     speed: float  # the field's typical speed (sampled on the client: on a small field, all of it)
+    load: dict  # load_field's keywords (a mesh's resample=, ...): each worker resamples its own
 
 
 @dataclass
@@ -164,7 +165,7 @@ def _setup(job: Job):
         got = _SETUPS.get(job.key)
         if got is None:
             _SETUPS.clear()  # one job per worker: the last one's pool goes
-            field = open_field(job.source, job.vector)
+            field = open_field(job.source, job.vector, job.load)
             pool = _Pool(field.stored_vector(), field.grid, job.budget, job.size)
             got = _SETUPS[job.key] = (Setup(field, job.options, "numba", pool, job.speed),
                                       threading.Lock())
@@ -242,7 +243,7 @@ class BlockRun:
     point_data = None  # (attributes are computed from the field after the trace)
 
     def __init__(self, client, field, source, vector, opts: TraceOptions, why: str,
-                 retries: int = 2, budget: int | None = None):
+                 retries: int = 2, budget: int | None = None, load=None):
         entry = opts.entry
         if entry.explicit is None or entry.retrace is not None:
             raise ValueError(f"method {entry.name}: block mode runs the explicit methods (a field "
@@ -258,7 +259,7 @@ class BlockRun:
         self.job = Job(f"{os.getpid()}-{id(self)}-{time.time_ns()}", source, vector, opts,
                        tuple(int(v) for v in self.layout.size),
                        tuple(int(v) for v in self.layout.span), self.layout.budget,
-                       typical_speed(field))
+                       typical_speed(field), dict(load or {}))
         self.paths: set = set()
         self.stats = {"rounds": 0, "sends": 0, "lines": 0, "busy": 0.0, "slots": 0.0,
                       "loads": 0, "bytes_read": 0}
@@ -358,11 +359,11 @@ class BlockRun:
 
 def trace_blocks(client, source, vector, seeds, out, opts: TraceOptions, why: str, *,
                  position_dtype="float32", retries: int = 2, timings: dict | None = None,
-                 field=None):
+                 field=None, load=None):
     """Lines of ``seeds`` through the snapshot ``source`` in block mode, written to ``out``
     as ``trace_to_file`` writes them (all or nothing).  Returns ``out``."""
-    field = open_field(source, vector) if field is None else field
-    run = BlockRun(client, field, source, vector, opts, why, retries)
+    field = open_field(source, vector, load) if field is None else field
+    run = BlockRun(client, field, source, vector, opts, why, retries, load=load)
     t0 = time.perf_counter()
     path = trace_to_file(field, seeds, out, opts, setup=run, batch_seeds=BATCH_LINES,
                          position_dtype=position_dtype, empty="ignore")

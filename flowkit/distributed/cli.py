@@ -49,6 +49,7 @@ def run(args, options) -> int:
     """Trace (or pathline) ``args.field`` with ``options`` (TraceOptions) on a dask cluster."""
     import numpy as np
 
+    from ..cli._field import mesh_options
     from ..fields.readers import load_field
     from ..integrate.seeds import parse_seed_spec
     from .jobs import JobError, _series, pathlines_distributed, trace_distributed
@@ -62,9 +63,10 @@ def run(args, options) -> int:
     if args.workers is not None and args.workers < 1:
         raise cli.CLIError(f"--workers must be at least 1, got {args.workers}")
     first = series[snaps[0] if snaps is not None and not args.pathlines else 0][1]
-    seeds = parse_seed_spec(args.seeds, load_field(first, vector=args.vector))
+    load = mesh_options(args)  # (a mesh: resampled on each worker, as here for the seeds)
+    seeds = parse_seed_spec(args.seeds, load_field(first, vector=args.vector, **load))
     cluster = {"scheduler": args.scheduler, "workers": args.workers,
-               "chunk_seeds": args.chunk_seeds, "vector": args.vector,
+               "chunk_seeds": args.chunk_seeds, "vector": args.vector, "load": load,
                "progress": False if args.quiet else None}
     dtype = "float64" if args.float64 else "float32"
     t0 = time.perf_counter()

@@ -32,7 +32,7 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
                       snapshots=None, per_snapshot: bool = False, vector: str | None = "U",
                       chunk_seeds: int | None = None, position_dtype="float32", retries: int = 2,
                       progress: bool | None = None, timings: dict | None = None,
-                      distribute: str = "auto", **kw) -> list[Path]:
+                      distribute: str = "auto", load: dict | None = None, **kw) -> list[Path]:
     """Streamlines of ``seeds`` through every snapshot of ``source`` on a dask cluster.
 
     ``source``: a field file, a ``.series`` file, a glob or a multi-snapshot flowkit HDF5 file
@@ -51,6 +51,8 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
     one snapshot) or "auto": blocks where the field's vector does not fit a worker's memory
     limit.  The choice and why go to ``timings`` (``distribute``, ``distribute_why``) and, unless
     ``progress`` is False, a line on stderr; block mode records them in the file's attrs.
+    ``load``: load_field's keywords for every snapshot (a mesh's ``resample``, ``block``,
+    ``data``): each worker reads and resamples the snapshots it traces itself, once each.
     """
     opts = _options(options, kw)
     series = _select(_series(source), snapshots)
@@ -63,7 +65,7 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
     with connect(client, scheduler, workers) as c:
         field = None  # (opened, not read, where its size or bricks matter)
         if distribute != "seeds" and len(series) == 1:
-            field = open_field(series[0][1], vector)
+            field = open_field(series[0][1], vector, load)
         mode, why = choose(distribute, field, c, len(series))
         if timings is not None:
             timings.update(distribute=mode, distribute_why=why)
@@ -73,17 +75,18 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
             seeds_in = np.load(seed_src) if isinstance(seed_src, str) else seed_src
             return [trace_blocks(c, series[0][1], vector, seeds_in, out, opts, why,
                                  position_dtype=position_dtype, retries=retries,
-                                 timings=timings, field=field)]
+                                 timings=timings, field=field, load=load)]
         chunk = _chunk(chunk_seeds, chunk_size(n, len(series), slots(c)))
         job = _job_hash("trace", [_source_id(r) for _, r in series], vector, seed_src, opts, chunk,
-                        position_dtype)
+                        position_dtype, *_load_id(load))
         parts_dir = _parts_dir(out, job)
         tasks = []
         for s, (_, ref) in enumerate(series):
             for j, a in enumerate(range(0, n, chunk)):
                 b = min(n, a + chunk)
                 tasks.append(Task(f"s{s:05d}-c{j:07d}", str(parts_dir / f"s{s:05d}-c{j:07d}.h5"),
-                                  ref, s, a, _slice(seed_src, a, b), opts, vector, position_dtype))
+                                  ref, s, a, _slice(seed_src, a, b), opts, vector, position_dtype,
+                                  load=dict(load or {})))
         joins = []
         for i, o in enumerate(outputs):
             mine = [t for t in tasks if t.snapshot == i] if len(outputs) > 1 else tasks
@@ -106,7 +109,7 @@ def pathlines_distributed(series, seeds, out, release=None, options: TraceOption
                           vector: str = "U", chunk_seeds: int | None = None,
                           position_dtype="float32", retries: int = 2,
                           progress: bool | None = None, timings: dict | None = None,
-                          **kw) -> Path:
+                          load: dict | None = None, **kw) -> Path:
     """Pathlines (``flowkit.integrate.pathlines``) of ``seeds`` over seed-chunk tasks, each task
     sweeping the whole series with two snapshots in memory; one output file identical to
     ``write_lines(pathlines(series, seeds, release, ...))``."""
@@ -119,11 +122,13 @@ def pathlines_distributed(series, seeds, out, release=None, options: TraceOption
         # every task reads the whole series: fewer, larger tasks than for streamlines
         chunk = _chunk(chunk_seeds, chunk_size(n, 1, slots(c), per_task=2))
         job = _job_hash("pathlines", [f"{t}:{_source_id(r)}" for t, r in entries], vector, seed_src, opts,
-                        chunk, position_dtype, None if rel is None else rel.tobytes())
+                        chunk, position_dtype, None if rel is None else rel.tobytes(),
+                        *_load_id(load))
         parts_dir = _parts_dir(out, job)
         tasks = [Task(f"c{j:07d}", str(parts_dir / f"c{j:07d}.h5"), None, -1, a,
                       _slice(seed_src, a, min(n, a + chunk)), opts, vector, position_dtype,
-                      series=entries, release=None if rel is None else rel[a:a + chunk].copy())
+                      series=entries, release=None if rel is None else rel[a:a + chunk].copy(),
+                      load=dict(load or {}))
                  for j, a in enumerate(range(0, n, chunk))]
         _run(c, tasks, [(out, tasks, {}, None)], job, retries, position_dtype, progress, 1,
              "pathlines", timings)
@@ -278,6 +283,11 @@ def _job_hash(*items) -> str:
             h.update(repr(it).encode())
         h.update(b"\0")
     return h.hexdigest()[:12]
+
+
+def _load_id(load) -> tuple:
+    """load_field's keywords in the job hash: () when none, so older jobs keep their hash."""
+    return (repr(sorted(load.items())),) if load else ()
 
 
 def _source_id(ref) -> str:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import os
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
@@ -64,6 +64,7 @@ class Task:
     series: tuple | None = None  # ((time, path or SnapshotRef), ...) for pathlines
     release: object = None  # release times of the chunk (pathlines)
     numba_threads: int = 1
+    load: dict = field(default_factory=dict)  # load_field's keywords (a mesh's resample=, ...)
 
     @property
     def n_seeds(self) -> int:
@@ -86,11 +87,11 @@ def run_task(task: Task) -> dict:
             from ..integrate.pathlines import pathlines
 
             lines = pathlines(list(task.series), seeds, task.release, task.options,
-                              vector=task.vector)
+                              vector=task.vector, load=task.load)
         else:
             from ..integrate.trace import trace
 
-            lines = trace(open_field(task.source, task.vector), seeds, task.options,
+            lines = trace(open_field(task.source, task.vector, task.load), seeds, task.options,
                           empty="ignore")  # one chunk of many: one outside the domain is no error
     lines.line_data["seed_id"] = lines.line_data["seed_id"] + task.first
     t1 = time.perf_counter()
@@ -137,16 +138,18 @@ def read_part(path) -> Lines:
                      {k: d[...] for k, d in f["line"].items()}, attrs)
 
 
-def open_field(source, vector) -> Field:
-    """The field of ``source``, read once per worker process for consecutive tasks."""
+def open_field(source, vector, load=None) -> Field:
+    """The field of ``source``, read once per worker process for consecutive tasks; ``load``:
+    load_field's keywords (a mesh is resampled on each worker that traces it, once)."""
     from ..fields.readers import SnapshotRef, load_field
 
     path, snap = (source.path, source.snapshot) if isinstance(source, SnapshotRef) else (source, None)
-    key = (str(path), snap, vector, os.stat(path).st_mtime_ns)
+    load = load or {}
+    key = (str(path), snap, vector, os.stat(path).st_mtime_ns, repr(sorted(load.items())))
     field = _FIELD_CACHE.get(key)
     if field is None:
         _FIELD_CACHE.clear()  # one snapshot per worker: drop the last before reading the next
-        field = _FIELD_CACHE[key] = load_field(source, vector=vector)
+        field = _FIELD_CACHE[key] = load_field(source, vector=vector, **load)
     return field
 
 

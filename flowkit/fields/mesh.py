@@ -60,6 +60,18 @@ class Mesh:
         kinds, n = np.unique(self.types, return_counts=True)
         return {NAMES.get(int(k), f"VTK type {int(k)}"): int(c) for k, c in zip(kinds, n)}
 
+    def cell_sizes(self) -> np.ndarray:
+        """Each cell's size: the cube root of its nodes' bounding-box volume (a polyhedron's
+        nodes are its faces' nodes: the box of the tetrahedra it is split into), from the
+        points alone, without splitting anything."""
+        p = self.points[self.connectivity]
+        if not p.size:
+            return np.zeros(self.n_cells)
+        starts = np.minimum(self.offsets[:-1], len(p) - 1)  # (an empty cell: size 0)
+        ext = np.maximum.reduceat(p, starts) - np.minimum.reduceat(p, starts)
+        ext[np.diff(self.offsets) == 0] = 0.0
+        return np.cbrt(np.prod(np.maximum(ext, 0.0), axis=1))
+
     def centroids(self) -> np.ndarray:
         """The mean of each cell's nodes (n_cells, 3)."""
         sums = np.add.reduceat(self.points[self.connectivity], self.offsets[:-1], axis=0)

@@ -20,13 +20,14 @@ coarsened to stay under ``AUTO_MAX_NODES``.
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
 from ..jit import inline, kernel
 from ..threads import run_ranges
 from .grid import Grid
-from .mesh import Elements, centre, map_point, n_nodes, shape
+from .mesh import Elements, Mesh, MeshError, centre, elements, map_point, n_nodes, shape
 from .stored import Source
 
 INSIDE_TOL = 1e-7  # parametric tolerance: nodes on a face, to rounding, are inside
@@ -66,15 +67,7 @@ def parse_resample(spec):
     return ("shape", shape_)
 
 
-def cell_sizes(el: Elements) -> np.ndarray:
-    """Each mesh cell's size: the cube root of its bounding box's volume."""
-    lo, hi = el.lo, el.hi
-    starts = np.flatnonzero(np.concatenate([[True], el.cell[1:] != el.cell[:-1]]))
-    ext = np.maximum.reduceat(hi, starts) - np.minimum.reduceat(lo, starts)
-    return np.cbrt(np.prod(np.maximum(ext, 0.0), axis=1))
-
-
-def auto_grid(el: Elements, bounds, spec) -> tuple[Grid, str]:
+def auto_grid(mesh: Mesh, bounds, spec) -> tuple[Grid, str]:
     """The grid for ``spec`` (parse_resample's answer) over ``bounds`` (3, 2), and how it was
     chosen."""
     lo, hi = bounds[:, 0], bounds[:, 1]
@@ -85,7 +78,7 @@ def auto_grid(el: Elements, bounds, spec) -> tuple[Grid, str]:
     if kind == "spacing":
         h, why = value, f"spacing {value:g} as asked"
     else:
-        h = float(np.percentile(cell_sizes(el), AUTO_PERCENTILE))
+        h = float(np.percentile(mesh.cell_sizes(), AUTO_PERCENTILE))
         why = f"spacing {h:.4g}: the {AUTO_PERCENTILE}th percentile of the cells' sizes"
 
     def dims(h):
@@ -127,28 +120,87 @@ def locate(el: Elements, grid: Grid) -> tuple[np.ndarray, np.ndarray]:
     return owner, rst
 
 
-class Resampled(Source):
-    """One mesh array at the located grid nodes, computed a box (a slab of x planes) at a time
-    when the Field first reads it (so ``flowkit info`` and a trace that needs only the vector pay for
-    nothing else).  Point data (n_mesh_points[, 3]) is interpolated by each node's element's
-    shape functions; cell data (n_cells[, 3]) is each node's cell's value.  NaN in no cell."""
+class Location:
+    """The grid's nodes located in a mesh's cells, done once, when the first array is read:
+    opening a mesh costs its metadata, so ``flowkit info`` splits and locates nothing.  Then
+    the mesh is split into elements (its cells checked: a bad cell is a ``MeshError`` naming
+    the file and the cell), each node is found in its element, and the note at
+    ``notes[0]`` (the Field's list, set by the reader) is rewritten with how many nodes lie in
+    no cell."""
 
-    def __init__(self, el: Elements, owner, rst, values, data="point"):
-        self.el, self.owner, self.rst, self.data = el, owner, rst, data
+    def __init__(self, mesh: Mesh, grid: Grid, why: str, data: str, where: str):
+        self.mesh, self.grid, self.why, self.data, self.where = mesh, grid, why, data, where
+        self.notes: list = []
+        self.el = self.owner = self.rst = None
+        self._lock = threading.Lock()
+
+    def __getstate__(self):  # (a Field travels to workers: the lock stays behind)
+        return {k: v for k, v in self.__dict__.items() if k != "_lock"}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
+    def located(self) -> tuple[Elements, np.ndarray, np.ndarray]:
+        """(elements, owner, parametric coordinates): see ``locate``."""
+        with self._lock:
+            if self.el is None:
+                try:
+                    el = elements(self.mesh)
+                except MeshError as e:
+                    raise MeshError(f"{self.where}: {e}") from None
+                self.owner, self.rst = locate(el, self.grid)
+                self.el = el
+                if self.notes:
+                    self.notes[0] = self.note()
+        return self.el, self.owner, self.rst
+
+    def note(self) -> str:
+        """The grid, why, the method, and the nodes in no cell (once located)."""
+        mesh, el, grid = self.mesh, self.el, self.grid
+        counts = ", ".join(f"{n} {k}" for k, n in mesh.counts().items())
+        split = (f" (polyhedra split into {el.n_tets} tetrahedra about face and cell centroids)"
+                 if el is not None and el.n_tets else "")
+        how = ("each node interpolated by the shape functions of the cell containing it"
+               if self.data == "point" else "each node taking the value of the cell containing "
+               "it (cell data, constant per cell)")
+        n = int(np.prod(grid.shape))
+        if el is None:
+            found = ("not located yet: cells are split and checked, and nodes found in them, "
+                     "when an array is first read (flowkit info --stats); nodes in no cell "
+                     "(obstacles, outside the mesh) will be NaN")
+        else:
+            found = (f"{int((self.owner < 0).sum())} of {n} nodes lie in no cell (obstacles, "
+                     "outside the mesh): NaN")
+        return (f"resampled from {mesh.n_cells} cells ({counts}){split} onto a "
+                f"{' x '.join(map(str, grid.shape))} {grid.kind} grid ({self.why}): {how}; "
+                f"{found}")
+
+
+class Resampled(Source):
+    """One mesh array at the grid nodes ``location`` finds, computed a box (a slab of x planes)
+    at a time when the Field first reads it (so ``flowkit info`` and a trace that needs only the
+    vector pay for nothing else).  Point data (n_mesh_points[, 3]) is interpolated by each
+    node's element's shape functions; cell data (n_cells[, 3]) is each node's cell's value.
+    NaN in no cell."""
+
+    def __init__(self, location: Location, values, data="point"):
+        self.location, self.data = location, data
         self.values, self.extended = np.asarray(values), data == "cell"
 
     def fill_box(self, out, box):
+        el, owner, rst = self.location.located()
         if not self.extended:  # (the centroids' values, once, when first read)
-            self.values, self.extended = self.el.extend(self.values), True
-        owner = np.ascontiguousarray(self.owner[box])
+            self.values, self.extended = el.extend(self.values), True
+        owner = np.ascontiguousarray(owner[box])
         if self.data == "cell":
-            v = self.values[self.el.cell[np.maximum(owner, 0)]]
+            v = self.values[el.cell[np.maximum(owner, 0)]]
             v[owner < 0] = np.nan
         else:
             pv = np.ascontiguousarray(self.values.reshape(self.values.shape[0], -1))
             v = np.empty(owner.shape + (pv.shape[1],))
-            run_ranges(_interpolate, owner.shape[0], owner, np.ascontiguousarray(self.rst[box]),
-                       self.el.conn, self.el.kind, pv, v)
+            run_ranges(_interpolate, owner.shape[0], owner, np.ascontiguousarray(rst[box]),
+                       el.conn, el.kind, pv, v)
         out[...] = v.reshape(out.shape)
 
 

@@ -347,14 +347,15 @@ def _advance(active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t
 
 # -- the driver -------------------------------------------------------------------------------
 def pathlines(series, seeds, release=None, options: TraceOptions | None = None, *,
-              vector: str = "U", **kw) -> Lines:
+              vector: str = "U", load: dict | None = None, **kw) -> Lines:
     """Pathlines from ``seeds`` ((n, 3)) released at ``release`` (a time or one per seed; default
     the first snapshot time, the last when ``direction="backward"``).
 
     ``series``: a ``.series`` file, glob or multi-snapshot HDF5 path (``load_series``), or a list of
     ``(time, Field | path | SnapshotRef)`` with at least two distinct times.  Snapshots are loaded
     as the sweep reaches them and dropped when it has passed them (at most two in memory).
-    ``vector`` names the vector array of snapshot files.  ``options``/``kw``: TraceOptions (method, rtol, atol, max_time = duration since release,
+    ``vector`` names the vector array of snapshot files; ``load``: load_field's other keywords for
+    them (a mesh's ``resample=``, ``data=``).  ``options``/``kw``: TraceOptions (method, rtol, atol, max_time = duration since release,
     max_length, max_steps, step, min_step, max_step, stagnation, direction forward|backward,
     attributes among time, arc_length, speed, velocity, vorticity, vorticity_magnitude,
     distance_to_seed and scalar names; velocity, vorticity and scalars interpolated linearly in
@@ -386,7 +387,7 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
             del held[old]  # drop the snapshot the sweep has passed before loading the next one
         for i in (k, k + 1):
             if i not in held:
-                held[i] = _load(sources[i], vector)
+                held[i] = _load(sources[i], vector, load or {})
         fa, fb = held[k], held[k + 1]
         if setup is None:
             setup = _Setup(fa, opts)
@@ -450,12 +451,12 @@ def _series(series) -> tuple[np.ndarray, list]:
     return times, [src for _, src in entries]
 
 
-def _load(src, vector) -> Field:
+def _load(src, vector, load) -> Field:
     if isinstance(src, Field):
         return src
     from ..fields.readers import load_field
 
-    return load_field(src, vector=vector)
+    return load_field(src, vector=vector, **load)
 
 
 class _Setup:

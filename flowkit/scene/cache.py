@@ -1,6 +1,7 @@
 """Traced lines cached by the inputs that determine their geometry.
 
-The key hashes the field file's CONTENT (its bytes, in 1 MiB chunks, plus which snapshot of it),
+The key hashes the field file's CONTENT (its bytes, in 1 MiB chunks, plus which snapshot of it;
+for a ``.vtm`` multiblock file, the ``.vtu`` of the block it reads too),
 the vector name, the seeds (the spec, and a seed file's content), the trace options, the flowkit
 version and the source of the packages that make lines (``code_digest``: a checkout between
 releases, or a fix, keeps its version but not its lines). The attribute set is not in the key:
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..fields.readers import SnapshotRef
+from ..fields.readers.vtu import vtm_block
 from ..integrate.attributes import ATTRIBUTES
 from ..integrate.seeds import FILE_TYPES
 from ..io.atomic import atomic_path
@@ -102,8 +104,9 @@ class LinesCache:
                 if k not in ("attributes", "progress", "budget", "memory")}  # (not the lines)
         field = {"digest": self._digest(Path(path)), "snapshot_in_file": inner,
                  "vector": plan.scene.field.vector}
-        if plan.scene.field.resample is not None:  # (absent otherwise: older keys stay valid)
-            field["resample"] = plan.scene.field.resample
+        if Path(path).suffix.lower() == ".vtm":  # (names the .vtu it reads: that holds the data)
+            field["block_digest"] = self._digest(vtm_block(path))
+        field.update(plan.scene.field.load_options)  # (only those given: older keys stay valid)
         return {"field": field,
                 "seeds": seed_in, "trace": opts, "flowkit": __version__, "code": code_digest()}
 

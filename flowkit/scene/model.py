@@ -10,6 +10,7 @@
     vector = "U"
     snapshot = "all"         # "all" (default), a position (negative from the end) or a list
     # resample = "160,120,60"  # unstructured meshes: NX,NY,NZ or "spacing:DX" (default: auto)
+    # data = "cell"          # VTK files: cell data (default point data)
 
     [seeds]
     spec = "plane:0.5,0.5,0.5:9,0,0:0,0,9:16,16"   # any --seeds spec (files relative to here)
@@ -87,6 +88,13 @@ class FieldSource:
     vector: str = "U"
     snapshot: str | int | tuple[int, ...] = "all"
     resample: str | None = None  # unstructured meshes: the grid (load_field's resample=)
+    data: str | None = None      # VTK files: "point" or "cell" (load_field's data=)
+
+    @property
+    def load_options(self) -> dict:
+        """load_field's keywords for this field (those given)."""
+        return {k: v for k, v in (("resample", self.resample), ("data", self.data))
+                if v is not None}
 
 
 @dataclass(frozen=True)
@@ -186,7 +194,8 @@ def _string(where, key, v) -> str:
 
 
 def _field(where: str, t: dict, base: Path) -> FieldSource:
-    _check_keys(where, t, {"file", "series", "dataset", "vector", "snapshot", "resample"})
+    _check_keys(where, t, {"file", "series", "dataset", "vector", "snapshot", "resample",
+                           "data"})
     given = [k for k in ("file", "series", "dataset") if k in t]
     if len(given) != 1:
         raise SceneError(f"{where}: give exactly one of file, series or dataset "
@@ -211,7 +220,11 @@ def _field(where: str, t: dict, base: Path) -> FieldSource:
             parse_resample(_string(where, "resample", resample))
         except ValueError:
             _fail(where, "resample", resample, '"NX,NY,NZ", "spacing:DX" or "auto"')
-    return FieldSource(kind, loc, vector, snapshot_selection(where, "snapshot", snap), resample)
+    data = t.get("data")
+    if data is not None and data not in ("point", "cell"):
+        _fail(where, "data", data, '"point" or "cell"')
+    return FieldSource(kind, loc, vector, snapshot_selection(where, "snapshot", snap), resample,
+                       data)
 
 
 def snapshot_selection(where: str, key: str, v) -> str | int | tuple[int, ...]:

@@ -42,8 +42,8 @@ class Snapshot:
     time: float
     ref: Path | SnapshotRef
 
-    def load(self, vector: str, resample: str | None = None):
-        opts = {} if resample is None else {"resample": resample}
+    def load(self, vector: str, **opts):
+        """The snapshot's field; ``opts``: load_field's keywords (FieldSource.load_options)."""
         return load_field(self.ref, vector=vector, **opts)
 
 
@@ -194,7 +194,7 @@ def explain(plan: Plan, cache=None) -> str:
         cam = v.camera.describe()
         if v.camera.automatic and plan.snapshots:
             if bounds is None:  # the grid only: arrays are read when used
-                bounds = plan.snapshots[0].load(src.vector).grid.bounds
+                bounds = plan.snapshots[0].load(src.vector, **src.load_options).grid.bounds
             chosen = v.camera.resolve(bounds, *v.size).describe()
             cam += f" ({chosen} on the field's bounds; chosen on the lines' bounds when drawn)"
         lines.append(f"view '{v.name}': style '{v.style}', {v.size[0]}x{v.size[1]}, camera "

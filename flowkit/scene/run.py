@@ -137,7 +137,8 @@ def _trace_on_cluster(plan: Plan, cache, workers: int, notes: list, report) -> d
         paths = trace_distributed(source, parse_seed_spec(plan.scene.seeds),
                                   Path(tmp) / "lines.h5", plan.options, workers=workers,
                                   snapshots=[s.index for s in todo], per_snapshot=True,
-                                  vector=src.vector, position_dtype="float64", progress=False)
+                                  vector=src.vector, load=src.load_options,
+                                  position_dtype="float64", progress=False)
         traced = {s.index: read_lines(p) for s, p in zip(todo, paths)}
     report(f"trace: {len(todo)} snapshots on {workers} Dask workers "
            f"({time.perf_counter() - t0:.2f} s)")
@@ -205,7 +206,7 @@ def _run_snapshot(plan: Plan, snap: Snapshot, cache: LinesCache | None, out: Pat
             lines = cache.read(entry, plan.attributes)
     else:
         with _Stage(res, "load field", report) as st:
-            fld = snap.load(scene.field.vector, scene.field.resample)
+            fld = snap.load(scene.field.vector, **scene.field.load_options)
             seeds = plan.seed_points(fld)
             st.msg = f"{fld.grid.shape} nodes, " + (
                 f"{len(seeds)} seeds" if seeds is not None else "evenly spaced seeding")

@@ -11,7 +11,9 @@ location (``fields/resample.py``): each grid node is interpolated in the mesh ce
 contains it; nodes in no cell (obstacles, outside) are NaN.  ``resample``: "NX,NY,NZ" or
 (nx, ny, nz), "spacing:DX", "auto" (the default when the nodes are no lattice: spacing from
 the mesh's fine cells, under a node cap), or a Grid; ``bounds`` restricts the grid's box
-(default: the mesh's bounds).  Field.notes states the grid, the method and the NaN count.
+(default: the mesh's bounds).  Field.notes states the grid and the method; the mesh is split
+(its cells checked) and the nodes located when an array is first read, and the note then gives
+how many nodes lie in no cell.
 
 Point data by default.  ``data="cell"``: cell data, each node taking its cell's value (constant
 per cell, not averaged to points); on a lattice, the values are placed at the cell centroids.
@@ -29,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from ..grid import Grid
-from ..mesh import POLYHEDRON, Mesh, MeshError, elements, legacy_faces
-from ..resample import Resampled, auto_grid, locate, parse_resample
+from ..mesh import POLYHEDRON, Mesh, legacy_faces
+from ..resample import Location, Resampled, auto_grid, parse_resample
 from ..stored import Stored
 from ._common import ReaderError, existing, foam_units, make_field
 from .vtk_xml import _Document
@@ -73,11 +75,11 @@ def read_vtu(path, vector="U", data="point", resample=None, shape=None, bounds=N
             return make_field(path, *axes, nodes, vector, time=time, notes=notes,
                               periodic=periodic, period=period, units=units, length_units=length)
         spec = ("auto", None)
-    try:
-        el = elements(mesh)
-    except MeshError as e:
-        raise ReaderError(f"{path}: {e}") from None
     lo, hi = mesh.points.min(0), mesh.points.max(0)
+    if bounds is None and np.any(hi <= lo):
+        a = int(np.flatnonzero(hi <= lo)[0])
+        raise ReaderError(f"{path}: every point lies at {'xyz'[a]} = {lo[a]:g}: the mesh has "
+                          "no volume to resample onto a grid")
     box = np.stack([lo, hi], 1) if bounds is None else np.asarray(bounds, float)
     if box.shape != (3, 2) or np.any(box[:, 1] <= box[:, 0]):
         raise ReaderError(f"{path}: resampling bounds {box.tolist()} must be ((x0, x1), "
@@ -85,30 +87,19 @@ def read_vtu(path, vector="U", data="point", resample=None, shape=None, bounds=N
     if isinstance(spec, Grid):
         target, why = spec, "as given"
     else:
-        target, why = auto_grid(el, box, spec)
-    owner, rst = locate(el, target)
-    nodes = {n: Stored(target.shape + a.shape[1:], a.dtype, Resampled(el, owner, rst, a, data),
+        target, why = auto_grid(mesh, box, spec)
+    # located when the first array is read (Location): opening costs the XML alone
+    where = Location(mesh, target, why, data, str(path))
+    nodes = {n: Stored(target.shape + a.shape[1:], a.dtype, Resampled(where, a, data),
                        f"{path}: {n}") for n, a in arrays.items()}
-    empty = int((owner < 0).sum())
-    notes.insert(0, resample_note(mesh, el, target, why, data, empty))
+    notes.insert(0, where.note())
     units, length = foam_units(path, nodes)
     g = spec if isinstance(spec, Grid) else None
-    return make_field(path, *target.axes, nodes, vector, time=time, notes=notes, units=units,
-                      length_units=length, periodic=periodic if g is None else g.periodic,
-                      period=period if g is None else g.period)
-
-
-def resample_note(mesh, el, grid, why, data, empty) -> str:
-    counts = ", ".join(f"{n} {k}" for k, n in mesh.counts().items())
-    split = (f" (polyhedra split into {el.n_tets} tetrahedra about face and cell centroids)"
-             if el.n_tets else "")
-    how = ("each node interpolated by the shape functions of the cell containing it"
-           if data == "point" else "each node taking the value of the cell containing it "
-           "(cell data, constant per cell)")
-    n = int(np.prod(grid.shape))
-    return (f"resampled from {mesh.n_cells} cells ({counts}){split} onto a "
-            f"{' x '.join(map(str, grid.shape))} {grid.kind} grid ({why}): {how}; "
-            f"{empty} of {n} nodes lie in no cell (obstacles, outside the mesh): NaN")
+    field = make_field(path, *target.axes, nodes, vector, time=time, notes=notes, units=units,
+                       length_units=length, periodic=periodic if g is None else g.periodic,
+                       period=period if g is None else g.period)
+    where.notes = field.notes  # (its first note, rewritten with the NaN count once located)
+    return field
 
 
 def _lattice(path, mesh, arrays, data, rtol, notes):
