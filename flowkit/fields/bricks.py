@@ -14,6 +14,9 @@ empty table (``NO_BRICKS``) means the vector array is the whole field.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
+
 import numpy as np
 
 B_SIZE, B_COUNT, B_NODES, B_TABLE = 0, 3, 6, 9
@@ -54,7 +57,8 @@ class BrickPool:
         self.size = np.array(size if size is not None else brick_nodes(stored, grid), np.int64)
         self.count = -(-np.array(grid.shape, np.int64) // self.size)
         n_bricks = int(np.prod(self.count))
-        self.slot_bytes = int(np.prod(self.size)) * 3 * stored.dtype.itemsize
+        self.tail = tuple(stored.shape[3:])  # (3,) for a vector, () for a scalar
+        self.slot_bytes = int(np.prod(self.size)) * int(np.prod(self.tail)) * stored.dtype.itemsize
         slots = min(n_bricks, int(POOL_SHARE * budget // self.slot_bytes))
         least = min(MIN_SLOTS, n_bricks)
         if slots < least:
@@ -63,7 +67,7 @@ class BrickPool:
                 f"of {tuple(self.size.tolist())} nodes, a trace needs {least}: give --memory "
                 f"{fmt_bytes(least * self.slot_bytes / POOL_SHARE)} or more")
         s0, s1, s2 = (int(v) for v in self.size)
-        self.pool = np.empty((slots * s0, s1, s2, 3), stored.dtype)
+        self.pool = np.empty((slots * s0, s1, s2, *self.tail), stored.dtype)
         self.bk = np.full(B_TABLE + n_bricks, -1, np.int64)
         self.bk[B_SIZE:B_SIZE + 3] = self.size
         self.bk[B_COUNT:B_COUNT + 3] = self.count
@@ -133,11 +137,28 @@ class BrickPool:
             self.stored.source.fill_box(dst, box)
         else:  # the last brick of an axis: part of a slot
             dst[...] = np.nan
-            tmp = np.empty((*shape, 3), dst.dtype)
+            tmp = np.empty((*shape, *self.tail), dst.dtype)
             self.stored.source.fill_box(tmp, box)
             dst[:shape[0], :shape[1], :shape[2]] = tmp
-        self.bytes_read += int(np.prod(shape)) * 3 * dst.itemsize
+        self.bytes_read += int(np.prod(shape)) * int(np.prod(self.tail)) * dst.itemsize
         self.loads += 1
+
+    def copy_box(self, out: np.ndarray, box: tuple) -> None:
+        """out[box] = the nodes of ``box`` (slices along x, y, z, inside the grid), from the
+        bricks holding them, loaded first (the pool must hold them all)."""
+        axes = [range(b.start // n, (b.stop - 1) // n + 1) for b, n in zip(box, self.size)]
+        blocks = list(itertools.product(*axes))
+        ids = np.ravel_multi_index(tuple(np.array(blocks).T), tuple(self.count))
+        self.load(ids)
+        s0 = int(self.size[0])
+        for blk, brick in zip(blocks, ids):
+            cut = [slice(max(b.start, q * n), min(b.stop, (q + 1) * n))
+                   for b, q, n in zip(box, blk, self.size)]
+            lo = [c.start - q * n for c, q, n in zip(cut, blk, self.size)]
+            row = int(self.table[brick]) * s0 + lo[0]
+            out[tuple(cut)] = self.pool[row:row + cut[0].stop - cut[0].start,
+                                        lo[1]:lo[1] + cut[1].stop - cut[1].start,
+                                        lo[2]:lo[2] + cut[2].stop - cut[2].start]
 
 
 def read_whole(field, scalar: str | None = None) -> bool:
@@ -163,70 +184,81 @@ def cell_nodes(grid, points: np.ndarray) -> np.ndarray:
 def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
               budget: int = GROUP_BYTES) -> dict:
     """``compute(field, points)`` (a dict of per-point arrays), on a copy of ``field`` that holds
-    only the bricks (``brick_nodes``) near ``points`` (those holding their cells' corners and
-    ``halo`` nodes more), a group of bricks at a time within ``budget`` bytes: the same values,
-    read from the same nodes, as on the whole field.  The copy's arrays are virtual memory of
-    the field's size (pages are taken only where a brick is written, and given back after each
-    group); ``scalars``: the scalar arrays ``compute`` reads."""
-    import itertools
+    only the nodes near ``points`` (each brick holding their cells, ``brick_nodes``, with its
+    upper corners and ``halo`` nodes more on every side), a group of bricks at a time within
+    ``budget`` bytes: the same values, read from the same nodes, as on the whole field.  The
+    copy's arrays are virtual memory of the field's size (pages are taken only where nodes are
+    written, and given back after each group).  The file is read through a pool of bricks
+    (``BrickPool``) and the groups go through the bricks block by block, so that a brick a
+    neighbouring group needs again is read once; ``scalars``: the scalar arrays ``compute``
+    reads."""
     import mmap
     from dataclasses import replace
 
     g = field.grid
     shape = np.array(g.shape, np.int64)
     points = np.ascontiguousarray(points, np.float64)
-    size = brick_nodes(field.stored_vector(), g)
-    count = -(-shape // size)
-    brick = bricks_of(cell_nodes(g, points), size, count)
-    order = np.argsort(brick, kind="stable")
-    ids, first = np.unique(brick[order], return_index=True)
-    groups = np.split(order, first[1:])
-
     arrays = {None: field.stored_vector()}
     # (a scalar not in memory is held as its Stored handle)
     arrays.update({n: field.scalars.meta(n) for n in scalars if not field.scalars.in_memory(n)})
-    maps, copies = [], {}
+    size = brick_nodes(arrays[None], g)
+    count = -(-shape // size)
+    ijk = cell_nodes(g, points) // size
+    brick = np.ravel_multi_index(tuple(ijk.T), tuple(count))
+    # blocks of 4^3 bricks, one after the other: the halos of a group's bricks overlap
+    order = np.lexsort((brick, np.ravel_multi_index(tuple((ijk // 4).T), tuple(-(-count // 4)))))
+    cut = np.flatnonzero(np.diff(brick[order])) + 1
+    groups = np.split(order, cut)
+    ids = brick[order][np.concatenate([[0], cut])] if order.size else brick[:0]
+
+    reach = 1 + halo  # nodes read beyond a brick: its cells' upper corners, and the halo
+    most = int(np.prod(-(-(size + 2 * reach) // size) + 1))  # bricks a brick's box spans
+    maps, copies, pools = [], {}, {}
     for name, st in arrays.items():
         nbytes = int(np.prod(st.shape)) * st.dtype.itemsize
         flags = mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | getattr(mmap, "MAP_NORESERVE", 0)
         maps.append(mmap.mmap(-1, max(nbytes, 1), flags=flags))
         copies[name] = np.frombuffer(maps[-1], st.dtype, nbytes // st.dtype.itemsize).reshape(st.shape)
+        one = int(np.prod(size)) * int(np.prod(st.shape[3:])) * st.dtype.itemsize
+        pools[name] = BrickPool(st, g, max(budget // 2, most * one) / POOL_SHARE, size)
     sub = replace(field, vector=copies[None],
                   scalars={**field.scalars, **{n: a for n, a in copies.items() if n is not None}})
-    reach = 1 + halo  # nodes read beyond a brick: its cells' upper corners, and the halo
     out: dict = {}
     todo: list[int] = []
-    filled: set = set()
     held = 0
-    for n, brick_id in enumerate(ids):
-        b = np.unravel_index(brick_id, tuple(count))
-        near = []  # per axis, the bricks within reach (wrapped on a periodic axis)
-        for a in range(3):
-            lo = (int(b[a] * size[a]) - reach) // int(size[a])
-            hi = (int((b[a] + 1) * size[a]) + reach - 1) // int(size[a])
-            near.append(sorted({q % int(count[a]) if g.periodic[a] else q
-                                for q in range(lo, hi + 1)
-                                if g.periodic[a] or 0 <= q < count[a]}))
-        for blk in itertools.product(*near):
-            if blk in filled:
-                continue
-            filled.add(blk)
-            box = tuple(slice(int(q * size[a]), int(min((q + 1) * size[a], shape[a])))
-                        for a, q in enumerate(blk))
-            for name, st in arrays.items():
-                copies[name][box] = st.read_box(box)
-                held += _pages(copies[name], *box)
-        todo.append(n)
-        if held >= budget or n == ids.size - 1:
-            idx = np.concatenate([groups[m] for m in todo])
-            for key, v in compute(sub, points[idx]).items():
-                if key not in out:
-                    out[key] = np.empty((points.shape[0], *v.shape[1:]), v.dtype)
-                out[key][idx] = v
-            for mm in maps:
-                mm.madvise(mmap.MADV_DONTNEED)  # the pages back, zero again
-            todo, filled, held = [], set(), 0
+    with contextlib.ExitStack() as files:
+        for st in arrays.values():
+            files.enter_context(st.source.held())
+        for n, brick_id in enumerate(ids):
+            b = np.unravel_index(brick_id, tuple(count))
+            spans = [_wrapped(int(b[a] * size[a]) - reach, int((b[a] + 1) * size[a]) + reach,
+                              int(shape[a]), g.periodic[a]) for a in range(3)]
+            for box in itertools.product(*spans):
+                for name, pool in pools.items():
+                    pool.copy_box(copies[name], box)
+                    held += _pages(copies[name], *box)
+            todo.append(n)
+            if held >= budget or n == ids.size - 1:
+                idx = np.concatenate([groups[m] for m in todo])
+                for key, v in compute(sub, points[idx]).items():
+                    if key not in out:
+                        out[key] = np.empty((points.shape[0], *v.shape[1:]), v.dtype)
+                    out[key][idx] = v
+                for mm in maps:
+                    mm.madvise(mmap.MADV_DONTNEED)  # the pages back, zero again
+                todo, held = [], 0
     return out
+
+
+def _wrapped(lo: int, hi: int, n: int, periodic: bool) -> list:
+    """The node range lo..hi-1 of an axis of n nodes as slices inside it: clipped at a bounded
+    axis' ends, on a periodic one wrapped (node n is node 0)."""
+    if not periodic:
+        return [slice(max(lo, 0), min(hi, n))]
+    if hi - lo >= n:
+        return [slice(0, n)]
+    lo, hi = lo % n, (hi - 1) % n + 1
+    return [slice(lo, hi)] if lo < hi else [slice(lo, n), slice(0, hi)]
 
 
 def _pages(a: np.ndarray, sx: slice, sy: slice, sz: slice, page: int = 4096) -> int:

@@ -253,12 +253,14 @@ def _mark_range(start, stop, gx, gy, gz, period, inv, pts, mark):
 def _rank(words, ids, base):
     """The marked nodes' flat indices into ids, in order, and base[b] = how many are marked
     before node 8b (``words``: the marks, 8 bytes of 0 or 1 to a word); returns their count.
-    Node q's row among them is then ``_row``: a word of unmarked nodes costs one test."""
+    Node q's row among them is then ``_row``: a word of unmarked nodes costs one test.  base is
+    written only at words with a mark, the only ones ``_row`` reads: zeroed by the allocator, a
+    grid-sized base then takes memory where the points are, not a byte per node."""
     count = 0
     for b in range(words.size):
-        base[b] = count
         wd = words[b]
         if wd:
+            base[b] = count
             for byte in range(8):
                 if (wd >> np.uint64(8 * byte)) & np.uint64(1):
                     ids[count] = 8 * b + byte
@@ -354,9 +356,9 @@ def vorticity_at(field, points) -> np.ndarray:
     """The curl at ``points`` (N, 3): the node curl at the corners of their cells only, sampled
     trilinearly as the field is (NaN outside or in a cell whose corners that count are NaN).
 
-    Its memory follows the points, not the grid: a byte per node marks the corners, another
-    counts them (a marked node's rank among all of them is its row), and the curl is kept at
-    the marked nodes only.  (A grid-sized curl array, even written only at those nodes, cost a
+    Its memory follows the points, not the grid: a byte per node marks the corners and a word
+    per 8 nodes counts them (a marked node's rank among all of them is its row), both zeroed
+    pages touched only where the points are, and the curl is kept at the marked nodes only.  (A grid-sized curl array, even written only at those nodes, cost a
     page fault for every 4 KiB page they touched: a third of the time.)  A large field not in
     memory is read near the points only (``bricks.by_bricks``)."""
     pts = np.ascontiguousarray(points, dtype=np.float64)
@@ -371,7 +373,7 @@ def vorticity_at(field, points) -> np.ndarray:
     mark = words.view(np.uint8)[:n_nodes].reshape(vec.shape[:3])
     run_ranges(_mark_range, pts.shape[0], *g.kernel_args(), pts, mark)
     ids = np.empty(min(n_nodes, 8 * pts.shape[0]), np.int64)
-    base = np.empty(words.size, np.int64)
+    base = np.zeros(words.size, np.int64)
     ids = ids[:_rank(words, ids, base)]
     rows = np.empty((ids.size, 3))
     if ids.size:
