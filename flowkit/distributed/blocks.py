@@ -104,6 +104,9 @@ class Layout:
         # each worker a contiguous run of blocks (C order: slabs along x)
         self.owner = np.arange(self.n_blocks) * n_workers // self.n_blocks
 
+    def release(self) -> None:
+        """(As ``BrickPool.release``: the pools are the workers', so nothing is held here.)"""
+
     def blocks_of_points(self, points) -> np.ndarray:
         return blocks_of(bricks_of(cell_nodes(self.grid, points), self.size, self.count),
                          self.count, self.span)

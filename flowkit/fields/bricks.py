@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import mmap
 
 import numpy as np
 
@@ -67,7 +68,9 @@ class BrickPool:
                 f"of {tuple(self.size.tolist())} nodes, a trace needs {least}: give --memory "
                 f"{fmt_bytes(least * self.slot_bytes / POOL_SHARE)} or more")
         s0, s1, s2 = (int(v) for v in self.size)
-        self.pool = np.empty((slots * s0, s1, s2, *self.tail), stored.dtype)
+        # in pages of its own, so that ``release`` can give them back
+        self._map = _anonymous(slots * self.slot_bytes)
+        self.pool = np.frombuffer(self._map, stored.dtype).reshape(slots * s0, s1, s2, *self.tail)
         self.bk = np.full(B_TABLE + n_bricks, -1, np.int64)
         self.bk[B_SIZE:B_SIZE + 3] = self.size
         self.bk[B_COUNT:B_COUNT + 3] = self.count
@@ -143,6 +146,13 @@ class BrickPool:
         self.bytes_read += int(np.prod(shape)) * int(np.prod(self.tail)) * dst.itemsize
         self.loads += 1
 
+    def release(self) -> None:
+        """Every brick evicted and the pool's pages given back (while attributes are sampled
+        from the file, say); the bricks are read again when next wanted."""
+        self._map.madvise(mmap.MADV_DONTNEED)
+        self.table[:] = -1
+        self.held[:] = -1
+
     def copy_box(self, out: np.ndarray, box: tuple) -> None:
         """out[box] = the nodes of ``box`` (slices along x, y, z, inside the grid), from the
         bricks holding them, loaded first (the pool must hold them all)."""
@@ -192,7 +202,6 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
     (``BrickPool``) and the groups go through the bricks block by block, so that a brick a
     neighbouring group needs again is read once; ``scalars``: the scalar arrays ``compute``
     reads."""
-    import mmap
     from dataclasses import replace
 
     g = field.grid
@@ -216,8 +225,7 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
     maps, copies, pools = [], {}, {}
     for name, st in arrays.items():
         nbytes = int(np.prod(st.shape)) * st.dtype.itemsize
-        flags = mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | getattr(mmap, "MAP_NORESERVE", 0)
-        maps.append(mmap.mmap(-1, max(nbytes, 1), flags=flags))
+        maps.append(_anonymous(nbytes))
         copies[name] = np.frombuffer(maps[-1], st.dtype, nbytes // st.dtype.itemsize).reshape(st.shape)
         one = int(np.prod(size)) * int(np.prod(st.shape[3:])) * st.dtype.itemsize
         pools[name] = BrickPool(st, g, max(budget // 2, most * one) / POOL_SHARE, size)
@@ -248,6 +256,13 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
                     mm.madvise(mmap.MADV_DONTNEED)  # the pages back, zero again
                 todo, held = [], 0
     return out
+
+
+def _anonymous(nbytes: int):
+    """Zeroed virtual memory of its own (pages taken when written), which madvise can give
+    back."""
+    flags = mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | getattr(mmap, "MAP_NORESERVE", 0)
+    return mmap.mmap(-1, max(nbytes, 1), flags=flags)
 
 
 def _wrapped(lo: int, hi: int, n: int, periodic: bool) -> list:

@@ -548,6 +548,8 @@ def _trace_batch(field, setup: Setup, seeds, opts: TraceOptions, id0: int) -> Li
             spacing[:] = np.where(length > 0, length / (opts.count - 1), 1.0)
 
     pts, t, s, owner, si = setup.run(tseeds, dirs, emit, spacing, phase, opts.budget)
+    if setup.bricks is not None and opts.attributes:
+        setup.bricks.release()  # (the attributes read near the vertices within the budget)
     lines = _assemble(field, opts, seeds, id0, pts, t, s, owner, task_columns(si),
                       setup.point_data, setup.bricks is not None)
     if entry.retrace is not None:
