@@ -60,7 +60,7 @@ HELPERS = {
         ("flowkit.integrate.kernel", "_from_anchor", (F, F, F, F, F, F, F1,)),
         ("flowkit.integrate.kernel", "_stalled", (F2, I, F1, F, F1,)),
         ("flowkit.integrate.stiffness", "hlambda", (F, F, F,)),
-        ("flowkit.integrate.stiffness", "dp5_hlambda", (F, F2, F1, F1,)),
+        ("flowkit.integrate.stiffness", "stage_hlambda", (F, F2, I, I, F1, F1,)),
         ("flowkit.integrate.stiffness", "stiff_update", (I, F,)),
         ("flowkit.integrate.kernel", "_next_step", (F, F, F, F, F, B, F, F, F, F, F,)),
         ("flowkit.integrate.kernel", "pack", (I1, F3, F3, I1, F2, F1, F1, I1,)),

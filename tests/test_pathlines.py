@@ -94,11 +94,11 @@ def test_at_most_two_snapshots_in_memory(tmp_path, monkeypatch):
     alive, peak = [], [0]
     load = P._load
 
-    def counting_load(src, vector):
+    def counting_load(src, vector, opts):
         gc.collect()
         live = [r for r in alive if r() is not None]
         peak[0] = max(peak[0], len(live) + 1)
-        f = load(src, vector)
+        f = load(src, vector, opts)
         alive.append(weakref.ref(f))
         return f
 

@@ -1,5 +1,7 @@
 """Stiffness detection (Hairer–Wanner's DP5 test) and the L-stable ROS34PW2 driver."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from numba import njit
@@ -10,7 +12,7 @@ from flowkit.fields.analytic import ABCFlow, LinearField, SolidBodyRotation
 from flowkit.fields.bricks import NO_BRICKS
 from flowkit.integrate import kernel as K
 from flowkit.integrate import rosenbrock as R
-from flowkit.integrate.methods import get_method
+from flowkit.integrate.methods import Method, MethodError, get_method
 from flowkit.integrate.options import OptionsError
 from flowkit.integrate.reasons import Reason
 from flowkit.integrate.rosenbrock import trace_rosenbrock
@@ -18,8 +20,8 @@ from flowkit.integrate.stiffness import (
     HLAMBDA_STIFF,
     STIFF_STEPS,
     cell_jacobian,
-    dp5_hlambda,
     is_stiff,
+    stage_hlambda,
     stiff_update,
 )
 
@@ -88,7 +90,7 @@ def _dp5_detect(A, y0, t_end, rtol):
         sc = rtol + rtol * np.maximum(abs(y), abs(y1))
         err = np.sqrt(np.mean((h * (m.e @ k[:, :3]) / sc) ** 2))
         if err <= 1:
-            hlam = dp5_hlambda(h, k, ys, y1)
+            hlam = stage_hlambda(h, k, 6, 5, ys, y1)
             hl.append(hlam)
             state = stiff_update(state, hlam)
             if is_stiff(state) and first < 0:
@@ -215,9 +217,27 @@ def test_kernel_flags_the_stiff_field_and_not_abc_or_rotation(aware, direction):
                       direction=direction)
             assert np.all(L.line_data["n_accepted"] >= STIFF_STEPS)  # room for the flag
             assert np.all(L.line_data["stiff"] == 0), (fld.source, tol)
-    # only dopri5 has the stage pair: other methods report 0, never a guess
+    # a method without a stiffness stage reports 0, never a guess
     L = trace(STIFF_GRID, SEEDS, method="cashkarp", rtol=1e-6, atol=1e-6, max_time=0.2)
     assert np.all(L.line_data["stiff"] == 0)
+
+
+def test_the_stiffness_test_reads_the_stages_the_method_names():
+    """Cash–Karp's stage at c = 1 is row 4 and its f(y1) row 6, not dopri5's rows 5 and 6:
+    named as its stiffness stage, the stiff field is flagged in both kernels (scalar and
+    lock-step), the rotation is not; a method whose steps never reach the threshold
+    (Heun–Euler, stable to h|λ| = 2) is refused."""
+    ck = dataclasses.replace(get_method("cashkarp"), name="ck_stiff", stiffness_stage=4)
+    for aware in (True, False):
+        L = trace(STIFF_GRID, SEEDS, method=ck, rtol=1e-6, atol=1e-6, max_time=0.2,
+                  cell_aware=aware)
+        assert np.all(L.line_data["stiff"] == 1), L.line_data["stiff"]
+        L = trace(SolidBodyRotation().to_field(9), [[0.5, 0.0, 0.1]], method=ck, rtol=1e-6,
+                  atol=1e-6, max_time=20.0, cell_aware=aware)
+        assert L.line_data["n_accepted"][0] >= STIFF_STEPS and L.line_data["stiff"][0] == 0
+    with pytest.raises(MethodError, match=r"stable only up to h\|λ\| = 2.00"):
+        Method.from_butcher("heun", [0.0, 1.0], [[0.0, 0.0], [1.0, 0.0]], [0.5, 0.5],
+                            [1.0, 0.0], order=2, err_order=1, stiffness_stage=1).check()
 
 
 def test_ros34pw2_through_trace_both_directions_and_its_limits():

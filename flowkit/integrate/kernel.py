@@ -120,7 +120,7 @@ from .schema import (  # noqa: F401
     S_Y,
     S_Y0,
 )
-from .stiffness import dp5_hlambda, stiff_update
+from .stiffness import stage_hlambda, stiff_update
 
 # P_CROSS (cell-aware, adaptive): a step the controller wants longer than the cell cap is tried
 # across faces, each stage in its own cell, and kept when its error estimate passes; otherwise
@@ -1184,7 +1184,8 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 reason = R_STAG
                 break
             if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
-                si[l, I_STIFF] = stiff_update(si[l, I_STIFF], dp5_hlambda(hs, k, ys, y1))
+                si[l, I_STIFF] = stiff_update(si[l, I_STIFF],
+                                              stage_hlambda(hs, k, fs, st_stiff, ys, y1))
             if adaptive:
                 hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin,
                                                 facmax, beta, expo1)

@@ -40,7 +40,20 @@ from numba import njit, prange, typeof
 
 from ..jit import inline
 from ..numba_cache import in_disk_cache
-from .kernel import R_MAXLEN, R_MAXTIME, _from_anchor, _next_step, _prefetch, _put, _retry
+from .kernel import (
+    ERR_HUGE,
+    ERR_TINY,
+    EXPO1_BETA,
+    NORM_HUGE,
+    NORM_TINY,
+    R_MAXLEN,
+    R_MAXTIME,
+    _from_anchor,
+    _next_step,
+    _prefetch,
+    _put,
+    _retry,
+)
 from .kernel import advance as advance_one_by_one
 from .methods import LOCKSTEP_STAGES as SMAX  # stages of the eligible methods
 from .methods import lockstep_tableau
@@ -299,7 +312,7 @@ def _lane(g, st, w, yt, k, ok, i, j, kk, lx, ly, lz, rx, ry, rz, di, dj, dk, fla
     k[g, st, 1, w] = v * r
     k[g, st, 2, w] = s * r
     k[g, st, 3, w] = r if param != 0 else sp
-    ok[g, w] &= (sp > 1e-150) & (sp < 1e150)
+    ok[g, w] &= (sp > NORM_TINY) & (sp < NORM_HUGE)
 
 
 @inline
@@ -372,7 +385,7 @@ def _error(g, n_err, mw, has_e2, fo, y, y1, hs, k, e5, e3, tmp, err, fin):
         else:
             e = abs(hs[g, w]) * math.sqrt(x5 / 3.0)
         err[g, w] = e
-        fin[g, w] &= int(x5 + x3 > 1e-250) & int(x5 + x3 < 1e250) & int(math.isfinite(e))
+        fin[g, w] &= int(x5 + x3 > ERR_TINY) & int(x5 + x3 < ERR_HUGE) & int(math.isfinite(e))
 
 
 @inline
@@ -427,7 +440,7 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
     param, max_steps, st_stiff = io[P_PARAM], io[P_MAXSTEPS], io[P_STIFF]
     hmin, hmax, stag = fo[O_HMIN], fo[O_HMAX], fo[O_STAG]
     safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
-    expo1 = 1.0 / mi[M_KEXP] - 0.75 * beta
+    expo1 = 1.0 / mi[M_KEXP] - EXPO1_BETA * beta
     lim_ind = fo[O_MAXTIME] if param == 0 else fo[O_MAXLEN]
     lim_dep = fo[O_MAXLEN] if param == 0 else fo[O_MAXTIME]
     # the domain's box; a periodic axis has no faces to leave by
@@ -610,11 +623,11 @@ def lockstep(active, dirs, gx, gy, gz, period, inv, flat, ny, nz, mc, ma, mw, mi
                     if why >= 0:
                         act[g, w] = 0  # below the minimum step: the scalar kernel ends the line
                 elif act[g, w] == 1:
-                    if st_stiff >= 0:  # Hairer & Wanner's test (stiffness.dp5_hlambda's sums)
+                    if st_stiff >= 0:  # Hairer & Wanner's test (stiffness.stage_hlambda's sums)
                         num = 0.0
                         den = 0.0
                         for a in range(3):
-                            num += (k[g, 6, a, w] - k[g, 5, a, w]) ** 2
+                            num += (k[g, fs, a, w] - k[g, st_stiff, a, w]) ** 2
                             den += (y1[g, a, w] - ys[g, a, w]) ** 2
                         stiff[g, w] = stiff_update(stiff[g, w], hlambda(hs[g, w], num, den))
                     hnext = h[g, w]

@@ -30,7 +30,9 @@ A tableau (``Method``) holds what the kernels need to run it without special cas
 * ``order`` of the propagated solution, ``err_order`` of the error estimate; the step-size
   controller uses the exponent 1 / (min(order, err_order) + 1).
 * ``stiffness_stage``: the stage evaluated at c = 1 before the error test that Hairer &
-  Wanner's stiffness test pairs with f(y1) (dopri5: stage 5); None: no test.
+  Wanner's stiffness test pairs with f(y1) (dopri5: stage 5, with f(y1) in row 6); None: no
+  test.  The method must be stable on the negative real axis beyond the test's threshold
+  (``stiffness.HLAMBDA_STIFF``), or its steps could never be flagged.
 
 ``Method.from_butcher`` builds one from a plain Butcher tableau and an optional embedded pair.
 """
@@ -46,11 +48,20 @@ import numpy as np
 
 from . import order_conditions as oc
 from . import schema
+from .stiffness import HLAMBDA_STIFF
 
 BACKENDS = ("numba", "opencl")
 LOCKSTEP_STAGES = 13  # stages the lock-step path holds, up to f(y1) (dop853 has the most)
-# the kernels' stiffness test reads these two stages (``stiffness.dp5_hlambda``)
-STIFF_PAIR = (5, 6)
+
+
+def real_stability_reach(a, b) -> float:
+    """Where an explicit tableau's stability interval on the negative real axis ends (to 0.01
+    below): the last x before |R(-x)| > 1, R(z) = 1 + z b·(I − z a)⁻¹ 1 (inf beyond 20)."""
+    one, eye = np.ones(len(b)), np.eye(len(b))
+    for x in np.arange(0.01, 20.0, 0.01):
+        if abs(1.0 - x * (b @ np.linalg.solve(eye + x * a, one))) > 1.0 + 1e-12:
+            return float(x) - 0.01
+    return np.inf
 
 
 class MethodError(ValueError):
@@ -235,10 +246,15 @@ class Method:
             if not (1 <= st < self.n_err and self.c[st] == 1):
                 raise MethodError(f"method {name}: stiffness_stage {st} must be a stage before "
                                   f"the error test (1..{self.n_err - 1}) with c = 1")
-            if (st, f) != STIFF_PAIR:
-                raise MethodError(f"method {name}: the kernels' stiffness test reads stages "
-                                  f"{STIFF_PAIR} (stiffness stage, f(y1)); this tableau has "
-                                  f"({st}, {f}): give stiffness_stage=None")
+            if st == f:
+                raise MethodError(f"method {name}: stiffness_stage {st} is f(y1) itself; the "
+                                  "test compares f(y1) with another evaluation at c = 1")
+            reach = real_stability_reach(self.a[:f, :f], self.b[:f])
+            if reach < HLAMBDA_STIFF:
+                raise MethodError(
+                    f"method {name}: stable only up to h|λ| = {reach:.2f} on the negative real "
+                    f"axis, below the stiffness test's threshold {HLAMBDA_STIFF}: its steps "
+                    "never reach it; give stiffness_stage=None")
 
 
 @dataclass(frozen=True, eq=False)

@@ -40,6 +40,8 @@ from ..lines import Lines
 from ..threads import run_ranges
 from . import attributes as _attributes
 from .kernel import (
+    ERRP_MIN,
+    EXPO1_BETA,
     _dense,
     _initial_guess,
     _initial_step,
@@ -163,7 +165,7 @@ def _lines(start, stop, active, seeds, release, d, goal, gx, gy, gz, period, inv
     safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
     hmin, hmax, stag, maxlen = fo[O_HMIN], fo[O_HMAX], fo[O_STAG], fo[O_MAXLEN]
     max_steps = io[P_MAXSTEPS]
-    expo1 = 1.0 / kexp - 0.75 * beta
+    expo1 = 1.0 / kexp - EXPO1_BETA * beta
     for slot in range(start, stop):
         l = active[slot]
         out_n[slot] = 0
@@ -188,7 +190,7 @@ def _lines(start, stop, active, seeds, release, d, goal, gx, gy, gz, period, inv
             n_acc = 0
             n_rej = 0
             last_rej = False
-            errp = 1e-4
+            errp = ERRP_MIN
             errpb = errp ** beta
             h = fo[O_H0]
             if h <= 0.0:

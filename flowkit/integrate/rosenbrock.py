@@ -43,7 +43,13 @@ from .kernel import _dense, _fc, _norm3, _put, _relocate, _root
 from .methods import get_method
 from .options import TraceOptions
 from .schema import I_NACC, I_NREJ, I_REASON, I_STATUS, ROS_INT_STATE
-from .stiffness import HLAMBDA_STIFF, cell_jacobian, spectral_radius_bound, stiff_update
+from .stiffness import (
+    HLAMBDA_STIFF,
+    STIFF_BIT,
+    cell_jacobian,
+    spectral_radius_bound,
+    stiff_update,
+)
 from .trace import trace
 
 NAME = "ros34pw2"
@@ -410,7 +416,7 @@ def run_tasks(method, setup, seeds, dirs, max_steps):
             "n_accepted": si[:, I_NACC].astype(np.int32),
             "n_rejected": si[:, I_NREJ].astype(np.int32),
             "n_crossing": np.zeros(len(si), np.int32),  # (it ends every step on a face)
-            "stiff": ((si[:, I_STIFF] >> 16) & 1).astype(np.int8),
+            "stiff": ((si[:, I_STIFF] & STIFF_BIT) != 0).astype(np.int8),
             "stiff_steps": si[:, I_NSTIFF].astype(np.int32)}
     return pts, par[:, 0].copy(), par[:, 1].copy(), owner, cols
 

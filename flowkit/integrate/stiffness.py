@@ -50,14 +50,15 @@ def cell_jacobian(coef, cf, px, py, pz, J):
 
 
 @njit(cache=True)
-def dp5_hlambda(h, k, ys, y1):
-    """|hλ| from DP5's last two stages: h ‖k[6] − k[5]‖ / ‖y1 − ys‖ over the position
-    (``k`` rows are stages, ``ys`` the point of stage 6 (index 5), ``y1`` the step's end).
-    0 when the two points coincide (no information)."""
+def stage_hlambda(h, k, last, stage, ys, y1):
+    """|hλ| from two evaluations at the step's end: h ‖k[last] − k[stage]‖ / ‖y1 − ys‖ over the
+    position (``k`` rows are stages; ``last`` is f(y1)'s row, ``stage`` the method's stiffness
+    stage, at c = 1, evaluated at ``ys``; DP5: 6 and 5).  0 when the two points coincide (no
+    information)."""
     num = 0.0
     den = 0.0
     for a in range(3):
-        num += (k[6, a] - k[5, a]) ** 2
+        num += (k[last, a] - k[stage, a]) ** 2
         den += (y1[a] - ys[a]) ** 2
     return hlambda(h, num, den)
 

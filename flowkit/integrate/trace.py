@@ -28,6 +28,7 @@ from .methods import names
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES
 from .rounds import Rounds
+from .stiffness import STIFF_BIT
 
 BUFFER_BYTES = 32 << 20  # output buffer of one pass: (tasks, budget) vertices of 40 bytes
 MAX_BUDGET = 1024  # vertices per line per pass (longer lines continue in the next pass)
@@ -563,7 +564,7 @@ def task_columns(si) -> dict:
             "n_accepted": si[:, K.I_NACC].astype(np.int32),
             "n_rejected": si[:, K.I_NREJ].astype(np.int32),
             "n_crossing": si[:, K.I_NCROSS].astype(np.int32),
-            "stiff": ((si[:, K.I_STIFF] >> 16) & 1).astype(np.int8)}  # stiffness.is_stiff's bit
+            "stiff": ((si[:, K.I_STIFF] & STIFF_BIT) != 0).astype(np.int8)}
 
 
 def _retrace_stiff(field, setup, seeds, opts, lines: Lines) -> Lines:
