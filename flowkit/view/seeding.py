@@ -182,7 +182,7 @@ def open_scene(path, view: str | None = None, snapshot=None, rake: str | None = 
         style_path = Path(source)
     plan = make_plan(scene, snapshot)
     snap = plan.snapshots[0]
-    field = snap.load(scene.field.vector, scene.field.resample)
+    field = snap.load(scene.field.vector, **scene.field.load_options)
     spec = scene.seeds
     if parse_rake_spec(spec) is not None and rake is None:
         start, source = Rake.from_spec(spec), None
