@@ -105,6 +105,29 @@ def test_the_heated_room(client, tmp_path):
     assert t["block_rounds"] >= 2
 
 
+def test_a_crowded_block_gets_a_second_owner(client, tmp_path, monkeypatch):
+    """Every seed in block 0 (x below node 16 of 24: bricks of 8, 2 bricks per block along x),
+    which worker 0 owns: the first round gives half its lines to worker 1, which reads block 0
+    too (120 half-lines: both directions); the lines are those of one process, bit for bit."""
+    # (lines enough for the first round, not for the dozen that cross to block 1 after it; the
+    # decision is the client's, in this process)
+    monkeypatch.setattr(blocks, "SHARE_LINES", 40)
+    path = _abc_file(tmp_path / "abc.h5")
+    seeds = np.random.default_rng(7).random((60, 3)) * [0.55 * L, L, L]
+    t = {}
+    whole, got = _blocks(client, path, seeds, t, max_length=10.0, direction="both")
+    _same_lines_and_attrs(whole, got)
+    assert t["blocks"] == 2 and t["block_bricks"] == "2 3 3", t
+    assert t["shared_blocks"] == 1 and got.attrs["shared_blocks"] == 1
+    first = t["rounds"][0]
+    assert first["lines"] == 120 and first["worker_lines"] == [60, 60] and first["tasks"] == 2
+    # without sharing, worker 0 takes the whole first round
+    t = {}
+    trace_distributed(path, seeds, tmp_path / "one.h5", client=client, distribute="blocks",
+                      max_length=10.0, direction="both", timings=t, balance=False)
+    assert t["shared_blocks"] == 0 and t["rounds"][0]["worker_lines"] == [120, 0]
+
+
 # -- the choice of mode --------------------------------------------------------------------
 class _Info:
     def __init__(self, *limits):
