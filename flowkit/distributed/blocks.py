@@ -195,7 +195,7 @@ def _worker_name() -> str:
 def advance(job: Job, owned: np.ndarray, emit: int, batch: Batch) -> dict:
     """Run the lines of ``batch`` on this worker until each has ended or waits for a brick of a
     block not ``owned`` (a bool per block); their states, vertices and counts back."""
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.thread_time()
     where = str(getattr(job.source, "path", job.source))
     worker = _worker_name()
     mine = np.flatnonzero(owned)
@@ -233,7 +233,8 @@ def advance(job: Job, owned: np.ndarray, emit: int, batch: Batch) -> dict:
         np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64))
     return {"rows": batch.rows, "sf": sf, "si": si, "wanted": rounds.wanted, "cell": rounds.cell,
             "left": unfinished(si), "points": pts, "t": t, "s": s, "owner": batch.rows[owner],
-            "worker": worker, "seconds": time.perf_counter() - t0, "loads": loads,
+            "worker": worker, "seconds": time.perf_counter() - t0,
+            "cpu_s": time.thread_time() - cpu0, "loads": loads,
             "bytes_read": read, "paths": paths}
 
 
@@ -344,12 +345,13 @@ class BlockRun:
         st["bytes_read"] += sum(r["bytes_read"] for r in results)
         for r in results:
             self.paths.update(r["paths"])
-        seconds = np.zeros(len(self.addrs))  # each worker's time in its task (one task each)
-        seconds[ws] = [r["seconds"] for r in results]
+        # each worker's time in its task (one task each), and the CPU it got in it
+        seconds, cpu = np.zeros((2, len(self.addrs)))
+        seconds[ws], cpu[ws] = [r["seconds"] for r in results], [r["cpu_s"] for r in results]
         self.per_round.append({"lines": int(rows.size), "tasks": len(results), "wall_s": wall,
                                "idle_share": max(0.0, 1.0 - busy / (wall * len(self.addrs))),
                                "worker_lines": np.bincount(who, minlength=len(self.addrs)).tolist(),
-                               "worker_s": seconds.tolist(),
+                               "worker_s": seconds.tolist(), "worker_cpu_s": cpu.tolist(),
                                "shared_blocks": int(np.count_nonzero(self.second >= 0))})
         return results
 
