@@ -11,7 +11,9 @@ unless there), with random seeds, max length 10, rtol 1e-5 (``bench_blocks``' tr
 * block mode on --workers workers, for --seeds / 5 and --seeds seeds: steps per CPU second of
   the tasks (bricks read in them; CPU, not wall: the machine may be shared), rounds and handoffs per line, and the client's time per round (its
   wall time less its longest task: submission, the states' transfer both ways, the client's
-  bookkeeping) fitted as a fixed time per round plus a time per line sent.
+  bookkeeping) fitted as a fixed time per round plus a time per line sent; and the time outside
+  the rounds (the job's start, the lines assembled and written by the client) as a fixed time
+  plus a time per vertex.
 
     .venv/bin/python benchmarks/bench_block_costs.py --n 192 --seeds 20000 --dir D
 """
@@ -96,12 +98,15 @@ def main(argv=None) -> int:
         print(f"one process, 1 thread, in memory: {dt:.2f} s ({cpu:.2f} s CPU), "
               f"{steps / args.seeds:.0f} steps per line, {steps / cpu / 1e6:.2f} M steps per CPU s")
         client, sent = [], []  # per round: the client's seconds, the lines sent
+        rest, verts = [], []  # per job: the time outside rounds, the vertices written
         for n in (args.seeds // 5, args.seeds):  # (rounds of many sizes, for the fit)
             np.save(seeds, pts[:n])
             wall, tim, _ = _blocks(path, seeds, out, args.workers, args.limit)
             task_cpu = sum(sum(r["worker_cpu_s"]) for r in tim["rounds"])
             client += [r["wall_s"] - max(r["worker_s"]) for r in tim["rounds"]]
             sent += [r["lines"] for r in tim["rounds"]]
+            rest.append(tim["tasks"] - sum(r["wall_s"] for r in tim["rounds"]))
+            verts.append(read_lines(out).points.shape[0])
             print(f"block mode, {n} seeds on {args.workers} workers: {wall:.2f} s, "
                   f"{tim['block_rounds']} rounds, {tim['handoffs_per_line']:.2f} handoffs per "
                   f"line, idle share {tim['idle_share']:.2f}, "
@@ -112,6 +117,12 @@ def main(argv=None) -> int:
             np.column_stack([np.ones(len(sent)), sent]), np.array(client), rcond=None)
         print(f"routing (round wall time less its longest task, {len(sent)} rounds): "
               f"{per_round * 1e3:.0f} ms per round + {per_line * 1e6:.1f} us per line sent")
+        # outside the rounds: the job's start (field, layout, typical speed) and the lines'
+        # assembly and writing on the client
+        per_vertex = (rest[1] - rest[0]) / (verts[1] - verts[0])
+        print(f"outside rounds: {rest[0]:.2f} s and {rest[1]:.2f} s for {verts[0]} and "
+              f"{verts[1]} vertices: {rest[0] - per_vertex * verts[0]:.2f} s + "
+              f"{per_vertex * 1e9:.0f} ns per vertex")
         print(f"load average {os.getloadavg()[0]:.2f}")
     finally:
         remove(args, seeds, out)

@@ -49,10 +49,12 @@ from .tasks import JobError, numba_threads, open_field
 WORKER_SHARE = 0.5  # of a worker's memory limit for its pool: dask pauses a worker at 80 %
 BATCH_LINES = 1 << 16  # seeds per run of rounds: the client holds their vertices
 # A worker with more than CROWDED times the mean lines of a round gets its most crowded block
-# shared with the least loaded worker, if that block holds at least SHARE_LINES lines: below
-# that, the second owner's read of the block costs more than the lines it takes over.
+# shared with the least loaded worker, where the stepping that moves off it outlasts the second
+# owner's read of the block: a line ~150 steps at ~0.5 M steps/s, bricks read at ~0.4 GB/s
+# (docs/scale-out.md, "Cost model").
 CROWDED = 1.5
-SHARE_LINES = 512
+LINE_SECONDS = 3e-4
+READ_BYTES_PER_S = 4e8
 MODES = ("auto", "seeds", "blocks")
 
 
@@ -101,7 +103,7 @@ class Layout:
         self.size = brick_nodes(stored, grid)
         self.count = -(-np.array(grid.shape, np.int64) // self.size)
         n_bricks = int(np.prod(self.count))
-        slot = int(np.prod(self.size)) * 3 * stored.dtype.itemsize
+        self.slot = slot = int(np.prod(self.size)) * 3 * stored.dtype.itemsize
         # (a pool of twice a worker's share of the bricks: its blocks and their neighbours)
         need = max(MIN_SLOTS, 2 * -(-n_bricks // n_workers)) * slot / POOL_SHARE
         self.budget = int(need if budget is None else min(budget, need))
@@ -369,7 +371,9 @@ class BlockRun:
             mine = (self.layout.owner[block] == busy) & (self.second[block] < 0)
             counts = np.bincount(block[mine], minlength=self.layout.n_blocks)
             b = int(np.argmax(counts))
-            if counts[b] < SHARE_LINES:
+            moved = min(counts[b], (load[busy] - load[idle]) // 2)
+            read = np.prod(self.layout.span) * self.layout.slot / READ_BYTES_PER_S
+            if moved * LINE_SECONDS < read:
                 break
             self.second[b] = idle
             who = self._split(block)
