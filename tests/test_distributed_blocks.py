@@ -130,6 +130,18 @@ def test_a_crowded_block_gets_a_second_owner(client, tmp_path, monkeypatch):
     assert t["shared_blocks"] == 0 and t["rounds"][0]["worker_lines"] == [120, 0]
 
 
+def test_workers_own_about_equal_shares_of_the_bricks(tmp_path):
+    """8 bricks along each axis in blocks of 6: blocks of 216, 72, 24 and 8 bricks.  Two
+    workers own 288 and 224 bricks (an equal count of blocks each gave 384 and 128)."""
+    fld = load_field(_abc_file(tmp_path / "abc.h5", n=64))  # bricks of 8^3 nodes, 6 kB
+    lay = blocks.Layout(fld, 2, int(508 * 6144 / 0.8) + 1)  # a pool of 508 bricks of 512
+    assert lay.span.tolist() == [6, 6, 6] and lay.n_blocks == 8
+    per_brick = lay.owner[lay.blocks_of_bricks(np.arange(512))]
+    assert np.bincount(per_brick).tolist() == [288, 224]
+    for n in (3, 4, 8):  # (every worker owns blocks)
+        assert np.unique(blocks.Layout(fld, n, int(508 * 6144 / 0.8) + 1).owner).size == n
+
+
 # -- the choice of mode --------------------------------------------------------------------
 class _Info:
     def __init__(self, *limits):

@@ -18,7 +18,8 @@ assembled in seed order by the trace's own code (``trace_to_file``, through the 
 writer): attributes are computed there, from the bricks near the vertices.
 
 Load balance, as Viskores does it: where one worker holds most of a round's lines (a plume, a
-vortex: seeds all in one block), its most crowded block gets a second owner, the worker with the
+vortex: seeds all in one block; a worker whose blocks hold more of the field), its most crowded
+block gets a second owner, the worker with the
 fewest lines that round, which reads that block's bricks too; from then on the block's lines
 are split between its two owners so as to level their loads.  Where a line runs never changes
 it, so the lines stay those of one process.
@@ -52,7 +53,7 @@ BATCH_LINES = 1 << 16  # seeds per run of rounds: the client holds their vertice
 # shared with the least loaded worker, where the stepping that moves off it outlasts the second
 # owner's read of the block: a line ~150 steps at ~0.5 M steps/s, bricks read at ~0.4 GB/s
 # (docs/scale-out.md, "Cost model").
-CROWDED = 1.5
+CROWDED = 1.2
 LINE_SECONDS = 3e-4
 READ_BYTES_PER_S = 4e8
 MODES = ("auto", "seeds", "blocks")
@@ -114,8 +115,16 @@ class Layout:
             span[a] = -(-span[a] // 2)
         self.span = span
         self.n_blocks = int(np.prod(-(-self.count // span)))
-        # each worker a contiguous run of blocks (C order: slabs along x)
-        self.owner = np.arange(self.n_blocks) * n_workers // self.n_blocks
+        # each worker a contiguous run of blocks (C order: slabs along x) holding about its share
+        # of the bricks: the last block along an axis may be smaller (8 bricks in blocks of 6:
+        # blocks of 216 and 8 bricks; equal counts of blocks gave one of 2 workers 3/4 of the
+        # bricks); as many blocks each where that leaves a worker none
+        edge = [np.minimum(s, c - np.arange(-(-c // s)) * s) for c, s in zip(self.count, span)]
+        bricks = np.einsum("i,j,k->ijk", *edge).ravel()
+        mid = np.cumsum(bricks) - bricks / 2
+        self.owner = (mid * n_workers // bricks.sum()).astype(np.int64)
+        if np.unique(self.owner).size < n_workers:
+            self.owner = np.arange(self.n_blocks) * n_workers // self.n_blocks
 
     def blocks_of_points(self, points) -> np.ndarray:
         return blocks_of(bricks_of(cell_nodes(self.grid, points), self.size, self.count),
