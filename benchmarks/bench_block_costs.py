@@ -30,7 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_bigfield import EXTENT
-from bench_blocks import TRACE, _blocks, field_args, field_file, remove
+from bench_blocks import TRACE, field_args, field_file, remove, run_blocks
 
 
 def _drop_cache(path) -> None:
@@ -101,7 +101,7 @@ def main(argv=None) -> int:
         rest, verts = [], []  # per job: the time outside rounds, the vertices written
         for n in (args.seeds // 5, args.seeds):  # (rounds of many sizes, for the fit)
             np.save(seeds, pts[:n])
-            wall, tim, _ = _blocks(path, seeds, out, args.workers, args.limit)
+            wall, tim, _ = run_blocks(path, seeds, out, args.workers, args.limit)
             task_cpu = sum(sum(r["worker_cpu_s"]) for r in tim["rounds"])
             client += [r["wall_s"] - max(r["worker_s"]) for r in tim["rounds"]]
             sent += [r["lines"] for r in tim["rounds"]]

@@ -45,7 +45,7 @@ def _peak_gb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
 
 
-def _blocks(path, seeds, out, workers, limit, repeat=1, **kw) -> tuple[float, dict, list]:
+def run_blocks(path, seeds, out, workers, limit, repeat=1, **kw) -> tuple[float, dict, list]:
     """Best wall time of block mode on a fresh LocalCluster, its timings, the workers' peaks."""
     from distributed import Client, LocalCluster
 
@@ -151,7 +151,7 @@ def main(argv=None) -> int:
         for i, (label, workers, kw) in enumerate(runs):
             o = folder / f"blocks{i}.h5"
             outs.append(o)
-            wall, tim, peaks = _blocks(path, seeds, o, workers, args.limit, args.repeat, **kw)
+            wall, tim, peaks = run_blocks(path, seeds, o, workers, args.limit, args.repeat, **kw)
             walls.append(wall)
             print(f"{label}: {wall:.2f} s; worker peak RSS "
                   + ", ".join(f"{p:.2f} GB" for p in peaks))
