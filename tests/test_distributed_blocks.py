@@ -26,11 +26,12 @@ client = test_distributed.client  # (the fixture: a LocalCluster of 2 worker pro
 READS = ("bricks_read", "field_bytes_read", "brick_rounds", "brick_pool_bytes")
 
 
-def _blocks(client, path, seeds, timings=None, **kw):
+def _blocks(client, path, seeds, timings=None, balance=True, **kw):
     """Lines of block mode (positions kept float64, as in memory) and the serial trace's."""
     out = path.with_name(path.stem + "_blocks.h5")
     got = read_lines(trace_distributed(path, seeds, out, client=client, distribute="blocks",
-                                       position_dtype="float64", timings=timings, **kw)[0])
+                                       position_dtype="float64", timings=timings,
+                                       balance=balance, **kw)[0])
     whole = trace(load_field(path), seeds, **kw)
     return whole, got
 
@@ -99,10 +100,46 @@ def test_the_heated_room(client, tmp_path):
     b = fld.grid.bounds
     seeds = b[:, 0] + (b[:, 1] - b[:, 0]) * np.random.default_rng(2).random((30, 3))
     t = {}
+    # (one owner per block: with both of its 2 blocks shared, no line would change worker)
     whole, got = _blocks(client, path, seeds, t, max_time=60.0, direction="both",
-                         attributes=["speed", "T"])
+                         attributes=["speed", "T"], balance=False)
     _same_lines_and_attrs(whole, got)
     assert t["block_rounds"] >= 2
+
+
+def test_a_crowded_block_gets_a_second_owner(client, tmp_path, monkeypatch):
+    """Every seed in block 0 (x below node 16 of 24: bricks of 8, 2 bricks per block along x),
+    which worker 0 owns: the first round gives half its lines to worker 1, which reads block 0
+    too (120 half-lines: both directions); the lines are those of one process, bit for bit."""
+    # reads slow enough that sharing a block (18 bricks of 6 kB) pays for 20 lines moved: the
+    # first round's, not the dozen that cross to block 1 after it (the client decides: here)
+    monkeypatch.setattr(blocks, "READ_BYTES_PER_S", 18 * 6144 / (20 * blocks.LINE_SECONDS))
+    path = _abc_file(tmp_path / "abc.h5")
+    seeds = np.random.default_rng(7).random((60, 3)) * [0.55 * L, L, L]
+    t = {}
+    whole, got = _blocks(client, path, seeds, t, max_length=10.0, direction="both")
+    _same_lines_and_attrs(whole, got)
+    assert t["blocks"] == 2 and t["block_bricks"] == "2 3 3", t
+    assert t["shared_blocks"] == 1 and got.attrs["shared_blocks"] == 1
+    first = t["rounds"][0]
+    assert first["lines"] == 120 and first["worker_lines"] == [60, 60] and first["tasks"] == 2
+    # without sharing, worker 0 takes the whole first round
+    t = {}
+    trace_distributed(path, seeds, tmp_path / "one.h5", client=client, distribute="blocks",
+                      max_length=10.0, direction="both", timings=t, balance=False)
+    assert t["shared_blocks"] == 0 and t["rounds"][0]["worker_lines"] == [120, 0]
+
+
+def test_workers_own_about_equal_shares_of_the_bricks(tmp_path):
+    """8 bricks along each axis in blocks of 6: blocks of 216, 72, 24 and 8 bricks.  Two
+    workers own 288 and 224 bricks (an equal count of blocks each gave 384 and 128)."""
+    fld = load_field(_abc_file(tmp_path / "abc.h5", n=64))  # bricks of 8^3 nodes, 6 kB
+    lay = blocks.Layout(fld, 2, int(508 * 6144 / 0.8) + 1)  # a pool of 508 bricks of 512
+    assert lay.span.tolist() == [6, 6, 6] and lay.n_blocks == 8
+    per_brick = lay.owner[lay.blocks_of_bricks(np.arange(512))]
+    assert np.bincount(per_brick).tolist() == [288, 224]
+    for n in (3, 4, 8):  # (every worker owns blocks)
+        assert np.unique(blocks.Layout(fld, n, int(508 * 6144 / 0.8) + 1).owner).size == n
 
 
 # -- the choice of mode --------------------------------------------------------------------

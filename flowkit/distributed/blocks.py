@@ -17,6 +17,13 @@ of one process, bit for bit, wherever they ran.  The client keeps the vertices; 
 assembled in seed order by the trace's own code (``trace_to_file``, through the atomic
 writer): attributes are computed there, from the bricks near the vertices.
 
+Load balance, as Viskores does it: where one worker holds most of a round's lines (a plume, a
+vortex: seeds all in one block; a worker whose blocks hold more of the field), its most crowded
+block gets a second owner, the worker with the
+fewest lines that round, which reads that block's bricks too; from then on the block's lines
+are split between its two owners so as to level their loads.  Where a line runs never changes
+it, so the lines stay those of one process.
+
 A task's result is a function of its inputs up to where each line stops (a brick another
 line's step read may already be resident); the lines are the same either way, so a task
 retried after its worker was lost gives the same lines, and the client takes one result per
@@ -42,6 +49,13 @@ from .tasks import JobError, numba_threads, open_field
 
 WORKER_SHARE = 0.5  # of a worker's memory limit for its pool: dask pauses a worker at 80 %
 BATCH_LINES = 1 << 16  # seeds per run of rounds: the client holds their vertices
+# A worker with more than CROWDED times the mean lines of a round gets its most crowded block
+# shared with the least loaded worker, where the stepping that moves off it outlasts the second
+# owner's read of the block: a line ~150 steps at ~0.5 M steps/s, bricks read at ~0.4 GB/s
+# (docs/scale-out.md, "Cost model").
+CROWDED = 1.2
+LINE_SECONDS = 3e-4
+READ_BYTES_PER_S = 4e8
 MODES = ("auto", "seeds", "blocks")
 
 
@@ -90,7 +104,7 @@ class Layout:
         self.size = brick_nodes(stored, grid)
         self.count = -(-np.array(grid.shape, np.int64) // self.size)
         n_bricks = int(np.prod(self.count))
-        slot = int(np.prod(self.size)) * 3 * stored.dtype.itemsize
+        self.slot = slot = int(np.prod(self.size)) * 3 * stored.dtype.itemsize
         # (a pool of twice a worker's share of the bricks: its blocks and their neighbours)
         need = max(MIN_SLOTS, 2 * -(-n_bricks // n_workers)) * slot / POOL_SHARE
         self.budget = int(need if budget is None else min(budget, need))
@@ -101,8 +115,16 @@ class Layout:
             span[a] = -(-span[a] // 2)
         self.span = span
         self.n_blocks = int(np.prod(-(-self.count // span)))
-        # each worker a contiguous run of blocks (C order: slabs along x)
-        self.owner = np.arange(self.n_blocks) * n_workers // self.n_blocks
+        # each worker a contiguous run of blocks (C order: slabs along x) holding about its share
+        # of the bricks: the last block along an axis may be smaller (8 bricks in blocks of 6:
+        # blocks of 216 and 8 bricks; equal counts of blocks gave one of 2 workers 3/4 of the
+        # bricks); as many blocks each where that leaves a worker none
+        edge = [np.minimum(s, c - np.arange(-(-c // s)) * s) for c, s in zip(self.count, span)]
+        bricks = np.einsum("i,j,k->ijk", *edge).ravel()
+        mid = np.cumsum(bricks) - bricks / 2
+        self.owner = (mid * n_workers // bricks.sum()).astype(np.int64)
+        if np.unique(self.owner).size < n_workers:
+            self.owner = np.arange(self.n_blocks) * n_workers // self.n_blocks
 
     def release(self) -> None:
         """(As ``BrickPool.release``: the pools are the workers', so nothing is held here.)"""
@@ -187,7 +209,7 @@ def _worker_name() -> str:
 def advance(job: Job, owned: np.ndarray, emit: int, batch: Batch) -> dict:
     """Run the lines of ``batch`` on this worker until each has ended or waits for a brick of a
     block not ``owned`` (a bool per block); their states, vertices and counts back."""
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.thread_time()
     where = str(getattr(job.source, "path", job.source))
     worker = _worker_name()
     mine = np.flatnonzero(owned)
@@ -225,7 +247,8 @@ def advance(job: Job, owned: np.ndarray, emit: int, batch: Batch) -> dict:
         np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64))
     return {"rows": batch.rows, "sf": sf, "si": si, "wanted": rounds.wanted, "cell": rounds.cell,
             "left": unfinished(si), "points": pts, "t": t, "s": s, "owner": batch.rows[owner],
-            "worker": worker, "seconds": time.perf_counter() - t0, "loads": loads,
+            "worker": worker, "seconds": time.perf_counter() - t0,
+            "cpu_s": time.thread_time() - cpu0, "loads": loads,
             "bytes_read": read, "paths": paths}
 
 
@@ -246,7 +269,8 @@ class BlockRun:
     point_data = None  # (attributes are computed from the field after the trace)
 
     def __init__(self, client, field, source, vector, opts: TraceOptions, why: str,
-                 retries: int = 2, budget: int | None = None, load=None):
+                 retries: int = 2, budget: int | None = None, load=None,
+                 balance: bool = True):
         entry = opts.entry
         if entry.explicit is None or entry.retrace is not None:
             raise ValueError(f"method {entry.name}: block mode runs the explicit methods (a field "
@@ -259,6 +283,8 @@ class BlockRun:
             limit = worker_memory(client)
             budget = None if limit is None else int(WORKER_SHARE * limit)
         self.bricks = self.layout = Layout(field, len(self.addrs), opts.memory or budget)
+        self.balance = balance
+        self.second = np.full(self.layout.n_blocks, -1, np.int64)  # a block's second owner
         self.job = Job(f"{os.getpid()}-{id(self)}-{time.time_ns()}", source, vector, opts,
                        tuple(int(v) for v in self.layout.size),
                        tuple(int(v) for v in self.layout.span), self.layout.budget,
@@ -298,13 +324,14 @@ class BlockRun:
         """One task per worker that owns blocks where lines wait; their results."""
         self._replace_lost_workers()
         t0 = time.perf_counter()
-        who = self.layout.owner[block]
-        futures = []
-        for w in np.unique(who):
+        who = self._assign(block)
+        futures, ws = [], np.unique(who)
+        for w in ws:
             pick = np.flatnonzero(who == w)
             part = Batch(*(getattr(batch, f)[pick] for f in Batch.__dataclass_fields__))
+            owned = (self.layout.owner == w) | (self.second == w)
             futures.append(self.client.submit(
-                advance, self.job, self.layout.owner == w, emit, part,
+                advance, self.job, owned, emit, part,
                 workers=[self.addrs[w]], allow_other_workers=True, retries=self.retries,
                 pure=False, key=f"flowkit-blocks-{self.job.key}-r{self.stats['rounds']}-w{w}"))
         results = []
@@ -332,9 +359,53 @@ class BlockRun:
         st["bytes_read"] += sum(r["bytes_read"] for r in results)
         for r in results:
             self.paths.update(r["paths"])
+        # each worker's time in its task (one task each), and the CPU it got in it
+        seconds, cpu = np.zeros((2, len(self.addrs)))
+        seconds[ws], cpu[ws] = [r["seconds"] for r in results], [r["cpu_s"] for r in results]
         self.per_round.append({"lines": int(rows.size), "tasks": len(results), "wall_s": wall,
-                               "idle_share": max(0.0, 1.0 - busy / (wall * len(self.addrs)))})
+                               "idle_share": max(0.0, 1.0 - busy / (wall * len(self.addrs))),
+                               "worker_lines": np.bincount(who, minlength=len(self.addrs)).tolist(),
+                               "worker_s": seconds.tolist(), "worker_cpu_s": cpu.tolist(),
+                               "shared_blocks": int(np.count_nonzero(self.second >= 0))})
         return results
+
+    def _assign(self, block: np.ndarray) -> np.ndarray:
+        """The worker of each line of a round (its block's owner; a block with two owners split
+        between them), after sharing crowded blocks where ``balance``."""
+        n_w = len(self.addrs)
+        who = self._split(block)
+        for _ in range(n_w if self.balance and n_w > 1 else 0):
+            load = np.bincount(who, minlength=n_w)
+            busy, idle = int(np.argmax(load)), int(np.argmin(load))
+            if load[busy] <= CROWDED * load.mean():
+                break
+            # the busiest worker's most crowded block not yet shared
+            mine = (self.layout.owner[block] == busy) & (self.second[block] < 0)
+            counts = np.bincount(block[mine], minlength=self.layout.n_blocks)
+            b = int(np.argmax(counts))
+            moved = min(counts[b], (load[busy] - load[idle]) // 2)
+            read = np.prod(self.layout.span) * self.layout.slot / READ_BYTES_PER_S
+            if moved * LINE_SECONDS < read:
+                break
+            self.second[b] = idle
+            who = self._split(block)
+        return who
+
+    def _split(self, block: np.ndarray) -> np.ndarray:
+        """Each line to its block's owner; the lines of a block with a second owner split so
+        that the two owners' loads come out as level as they can (largest blocks first)."""
+        first, second = self.layout.owner[block], self.second[block]
+        who = first.copy()
+        load = np.bincount(first[second < 0], minlength=len(self.addrs))
+        shared = np.bincount(block[second >= 0], minlength=self.layout.n_blocks)
+        for b in np.argsort(-shared, kind="stable")[:np.count_nonzero(shared)]:
+            rows = np.flatnonzero(block == b)
+            a, c, k = self.layout.owner[b], self.second[b], rows.size
+            to_c = int(np.clip((k + load[a] - load[c]) // 2, 0, k))
+            who[rows[k - to_c:]] = c
+            load[a] += k - to_c
+            load[c] += to_c
+        return who
 
     def _replace_lost_workers(self):
         """A worker gone (the nanny starts a new one under a new address): its blocks go to a
@@ -351,6 +422,7 @@ class BlockRun:
         return {"distribute": "blocks", "distribute_why": self.why, "blocks": lay.n_blocks,
                 "block_bricks": " ".join(str(int(v)) for v in lay.span),
                 "block_workers": len(self.addrs), "block_rounds": st["rounds"],
+                "shared_blocks": int(np.count_nonzero(self.second >= 0)),
                 "handoffs_per_line": (st["sends"] - st["lines"]) / max(1, st["lines"]),
                 "idle_share": 1.0 - st["busy"] / st["slots"] if st["slots"] else 0.0,
                 "bricks_read": st["loads"], "field_bytes_read": st["bytes_read"]}
@@ -362,11 +434,12 @@ class BlockRun:
 
 def trace_blocks(client, source, vector, seeds, out, opts: TraceOptions, why: str, *,
                  position_dtype="float32", retries: int = 2, timings: dict | None = None,
-                 field=None, load=None):
+                 field=None, load=None, balance: bool = True):
     """Lines of ``seeds`` through the snapshot ``source`` in block mode, written to ``out``
-    as ``trace_to_file`` writes them (all or nothing).  Returns ``out``."""
+    as ``trace_to_file`` writes them (all or nothing).  Returns ``out``.  ``balance``: share
+    crowded blocks with a second owner (False: each block on its one owner, to compare)."""
     field = open_field(source, vector, load) if field is None else field
-    run = BlockRun(client, field, source, vector, opts, why, retries, load=load)
+    run = BlockRun(client, field, source, vector, opts, why, retries, load=load, balance=balance)
     t0 = time.perf_counter()
     path = trace_to_file(field, seeds, out, opts, setup=run, batch_seeds=BATCH_LINES,
                          position_dtype=position_dtype, empty="ignore")

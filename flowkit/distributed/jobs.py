@@ -32,7 +32,8 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
                       snapshots=None, per_snapshot: bool = False, vector: str | None = "U",
                       chunk_seeds: int | None = None, position_dtype="float32", retries: int = 2,
                       progress: bool | None = None, timings: dict | None = None,
-                      distribute: str = "auto", load: dict | None = None, **kw) -> list[Path]:
+                      distribute: str = "auto", load: dict | None = None, balance: bool = True,
+                      **kw) -> list[Path]:
     """Streamlines of ``seeds`` through every snapshot of ``source`` on a dask cluster.
 
     ``source``: a field file, a ``.series`` file, a glob or a multi-snapshot flowkit HDF5 file
@@ -53,6 +54,7 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
     ``progress`` is False, a line on stderr; block mode records them in the file's attrs.
     ``load``: load_field's keywords for every snapshot (a mesh's ``resample``, ``block``,
     ``data``): each worker reads and resamples the snapshots it traces itself, once each.
+    ``balance`` (block mode): give a crowded block a second owner (False: one owner each).
     """
     opts = _options(options, kw)
     series = _select(_series(source), snapshots)
@@ -75,7 +77,8 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
             seeds_in = np.load(seed_src) if isinstance(seed_src, str) else seed_src
             return [trace_blocks(c, series[0][1], vector, seeds_in, out, opts, why,
                                  position_dtype=position_dtype, retries=retries,
-                                 timings=timings, field=field, load=load)]
+                                 timings=timings, field=field, load=load,
+                                 balance=balance)]
         chunk = _chunk(chunk_seeds, chunk_size(n, len(series), slots(c)))
         job = _job_hash("trace", [_source_id(r) for _, r in series], vector, seed_src, opts, chunk,
                         position_dtype, *_load_id(load))
