@@ -200,3 +200,12 @@ def test_a_bricked_trace_shows_its_progress(tmp_path, capsys):
     trace(load_field(path), SEEDS, max_length=4.0, memory="120kB", progress=True)
     err = capsys.readouterr().err
     assert "trace (bricks)" in err and "40/40" in err and "kB read" in err
+
+
+def test_attributes_under_a_budget_read_no_scalar_they_do_not_use(tmp_path):
+    """Vorticity sampled brick by brick leaves T in its file (reading every scalar of the field
+    whole for each group cost 4.3 GB at 1024^3)."""
+    fld = load_field(_abc_file(tmp_path / "abc.h5"))
+    lines = trace(fld, SEEDS[:5], max_length=4.0, memory="120kB", attributes=["vorticity"])
+    assert np.isfinite(lines.point_data["vorticity"]).any()
+    assert not fld.scalars.in_memory("T") and not fld.vector_in_memory()

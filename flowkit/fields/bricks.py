@@ -214,14 +214,15 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
     count = -(-shape // size)
     ijk = cell_nodes(g, points) // size
     brick = np.ravel_multi_index(tuple(ijk.T), tuple(count))
-    # blocks of 4^3 bricks, one after the other: the halos of a group's bricks overlap
-    order = np.lexsort((brick, np.ravel_multi_index(tuple((ijk // 4).T), tuple(-(-count // 4)))))
+    # blocks of 2^3 bricks, one after the other: the halos of a group's bricks overlap, and the
+    # pool holds a block's bricks with the layer around them
+    order = np.lexsort((brick, np.ravel_multi_index(tuple((ijk // 2).T), tuple(-(-count // 2)))))
     cut = np.flatnonzero(np.diff(brick[order])) + 1
     groups = np.split(order, cut)
     ids = brick[order][np.concatenate([[0], cut])] if order.size else brick[:0]
 
     reach = 1 + halo  # nodes read beyond a brick: its cells' upper corners, and the halo
-    most = int(np.prod(-(-(size + 2 * reach) // size) + 1))  # bricks a brick's box spans
+    most = int(np.prod(-(-(size + 2 * reach) // size) + 2))  # bricks a block's boxes span
     maps, copies, pools = [], {}, {}
     for name, st in arrays.items():
         nbytes = int(np.prod(st.shape)) * st.dtype.itemsize
@@ -229,8 +230,10 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
         copies[name] = np.frombuffer(maps[-1], st.dtype, nbytes // st.dtype.itemsize).reshape(st.shape)
         one = int(np.prod(size)) * int(np.prod(st.shape[3:])) * st.dtype.itemsize
         pools[name] = BrickPool(st, g, max(budget // 2, most * one) / POOL_SHARE, size)
+    # (the other scalars as they are: in memory, or still in their file, unread)
+    kept = {n: field.scalars.meta(n) for n in field.scalars}
     sub = replace(field, vector=copies[None],
-                  scalars={**field.scalars, **{n: a for n, a in copies.items() if n is not None}})
+                  scalars={**kept, **{n: a for n, a in copies.items() if n is not None}})
     out: dict = {}
     todo: list[int] = []
     held = 0
@@ -263,6 +266,13 @@ def _anonymous(nbytes: int):
     back."""
     flags = mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | getattr(mmap, "MAP_NORESERVE", 0)
     return mmap.mmap(-1, max(nbytes, 1), flags=flags)
+
+
+def zeroed(n: int, dtype) -> np.ndarray:
+    """np.zeros(n, dtype) in pages of its own, of the base size: numpy advises huge pages for a
+    large array, and an array written at scattered places would then take 2 MiB per write."""
+    dtype = np.dtype(dtype)
+    return np.frombuffer(_anonymous(n * dtype.itemsize), dtype, n)
 
 
 def _wrapped(lo: int, hi: int, n: int, periodic: bool) -> list:

@@ -19,7 +19,7 @@ from numba import njit
 from ..jit import inline, prefetch
 from ..threads import run_ranges
 from . import interp
-from .bricks import by_bricks, read_whole
+from .bricks import by_bricks, cell_nodes, read_whole, zeroed
 
 # -- the derivative along one axis, as np.gradient forms it --------------------------------
 
@@ -250,14 +250,15 @@ def _mark_range(start, stop, gx, gy, gz, period, inv, pts, mark):
 
 
 @njit(cache=True, nogil=True)
-def _rank(words, ids, base):
+def _rank(words, ids, base, first, stop):
     """The marked nodes' flat indices into ids, in order, and base[b] = how many are marked
-    before node 8b (``words``: the marks, 8 bytes of 0 or 1 to a word); returns their count.
+    before node 8b (``words``: the marks, 8 bytes of 0 or 1 to a word, all of them in words
+    first..stop-1); returns their count.
     Node q's row among them is then ``_row``: a word of unmarked nodes costs one test.  base is
     written only at words with a mark, the only ones ``_row`` reads: zeroed by the allocator, a
     grid-sized base then takes memory where the points are, not a byte per node."""
     count = 0
-    for b in range(words.size):
+    for b in range(first, stop):
         wd = words[b]
         if wd:
             base[b] = count
@@ -357,10 +358,12 @@ def vorticity_at(field, points) -> np.ndarray:
     trilinearly as the field is (NaN outside or in a cell whose corners that count are NaN).
 
     Its memory follows the points, not the grid: a byte per node marks the corners and a word
-    per 8 nodes counts them (a marked node's rank among all of them is its row), both zeroed
-    pages touched only where the points are, and the curl is kept at the marked nodes only.  (A grid-sized curl array, even written only at those nodes, cost a
-    page fault for every 4 KiB page they touched: a third of the time.)  A large field not in
-    memory is read near the points only (``bricks.by_bricks``)."""
+    per 8 nodes counts them (a marked node's rank among all of them is its row), zeroed pages
+    of their own (numpy advises huge pages for a large array: a mark would take 2 MiB) touched
+    only where the points are, counted only over the x planes the points span; the curl is
+    kept at the marked nodes only.  (A grid-sized curl array, even written only at those nodes,
+    cost a page fault for every 4 KiB page they touched: a third of the time.)  A large field
+    not in memory is read near the points only (``bricks.by_bricks``)."""
     pts = np.ascontiguousarray(points, dtype=np.float64)
     if not read_whole(field):
         got = by_bricks(field, pts, lambda f, p: {"w": vorticity_at(f, p)}, halo=CURL_REACH)
@@ -369,12 +372,19 @@ def vorticity_at(field, points) -> np.ndarray:
     vec = field.vector
     shape = np.array(vec.shape[:3], np.int64)
     n_nodes = int(np.prod(shape))
-    words = np.zeros((n_nodes + 7) // 8, np.uint64)  # the marks, padded to whole words
+    words = zeroed((n_nodes + 7) // 8, np.uint64)  # the marks, padded to whole words
     mark = words.view(np.uint8)[:n_nodes].reshape(vec.shape[:3])
     run_ranges(_mark_range, pts.shape[0], *g.kernel_args(), pts, mark)
     ids = np.empty(min(n_nodes, 8 * pts.shape[0]), np.int64)
-    base = np.zeros(words.size, np.int64)
-    ids = ids[:_rank(words, ids, base)]
+    base = zeroed(words.size, np.int64)
+    # the x planes the marks lie on (a cell's upper corners one further, or plane 0 on a wrapped
+    # axis): the words to count
+    i = cell_nodes(g, pts)[:, 0] if pts.shape[0] else np.zeros(1, np.int64)
+    lo, hi = max(int(i.min()) - 1, 0), min(int(i.max()) + 2, int(shape[0]))
+    if g.periodic[0] and hi >= shape[0] - 1:
+        lo = 0
+    plane = int(shape[1] * shape[2])
+    ids = ids[:_rank(words, ids, base, lo * plane // 8, min(-(-hi * plane // 8), words.size))]
     rows = np.empty((ids.size, 3))
     if ids.size:
         run_ranges(_curl_range, ids.size, ids, vec, *_tables(g), rows)
