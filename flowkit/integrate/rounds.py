@@ -54,7 +54,6 @@ class Rounds:
         self.cell = np.full((n, 3), -1, np.int64)  # each line's cell when it last waited
         self.span = block_span(pool.count, pool.slots) if span is None else np.asarray(span)
         self.blocks = -(-pool.count // self.span)
-        self.rounds = 0
 
     def block_of(self, bricks: np.ndarray) -> np.ndarray:
         return blocks_of(bricks, self.pool.count, self.span)
@@ -67,7 +66,6 @@ class Rounds:
         waiting = wait >= 0
         if not waiting.any():
             return active
-        self.rounds += 1
         rows, wait = active[waiting], wait[waiting]
         cells = np.where((si[rows, S.I_STATUS] == S.RUNNING)[:, None],
                          si[rows, S.I_CELL:S.I_CELL + 3], -1)
