@@ -4,7 +4,8 @@ numba reports a compilation (not a load from its cache) as the event "numba:comp
 one of flowkit's functions starts compiling at the outermost level and is still compiling
 after ``DELAY`` seconds, the logger ``flowkit.compile`` says so once per kernel and process:
 "compiling the tracing kernel for this CPU, once: ~N s", N from ``TYPICAL`` (cold compile
-times measured on a 2-core machine by benchmarks/bench_cold_start.py).  The CLI prints that
+times measured on a 2-core machine by benchmarks/bench_cold_start.py).  A kernel compiled in
+variants (one per type of some arguments) names them in ``VARIANTS``: each is told once.  The CLI prints that
 logger's messages on stderr; Python users see them through logging.
 """
 
@@ -20,18 +21,28 @@ DELAY = 2.0
 # qualified name of a kernel -> (what it is, typical cold compile seconds)
 TYPICAL = {
     "flowkit.integrate.kernel._advance_lines": ("the tracing kernel", 9),
+    "flowkit.integrate.kernel._advance_lines:pathlines": ("the tracing kernel for pathlines", 6),
+    "flowkit.integrate.kernel._advance_lines:rosenbrock": (
+        "the tracing kernel with the Rosenbrock stepper", 7),
     "flowkit.integrate.lanes.lockstep": ("the lock-step kernel", 18),
-    "flowkit.integrate.pathlines._lines": ("the pathline kernel", 4),
-    "flowkit.integrate.rosenbrock._lines": ("the Rosenbrock kernel", 3),
     "flowkit.fields.interp._sample_range": ("the attribute sampler", 1),
     "flowkit.seeding.even._pick": ("the evenly spaced seeding's candidate pick", 3),
     "flowkit.seeding.even._walk": ("the evenly spaced seeding's walk", 1),
 }
 
 
-def _name(dispatcher) -> str:
+# qualified name of a kernel -> its variant's suffix (":name", "" the first) from the argument
+# types of a compilation; set by the kernel's module (this one sits below it)
+VARIANTS: dict = {}
+
+
+def _name(dispatcher, args=None) -> str:
     f = getattr(dispatcher, "py_func", None)
-    return f"{f.__module__}.{f.__qualname__}" if f is not None else ""
+    if f is None:
+        return ""
+    name = f"{f.__module__}.{f.__qualname__}"
+    variant = VARIANTS.get(name)
+    return name + (variant(args) if variant is not None and args is not None else "")
 
 
 class _Listener(event.Listener):
@@ -44,7 +55,7 @@ class _Listener(event.Listener):
         self.depth += 1
         if self.depth != 1:
             return
-        name = _name(ev.data.get("dispatcher"))
+        name = _name(ev.data.get("dispatcher"), ev.data.get("args"))
         if not name.startswith("flowkit.") or name in self.told:
             return
         what, secs = TYPICAL.get(name, ("a flowkit kernel", None))

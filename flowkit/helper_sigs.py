@@ -5,7 +5,7 @@ flowkit/parallel_compile.py says what it is for)."""
 
 from numba.core import types as t
 
-F, I, B = t.float64, t.int64, t.boolean
+F, I, B, N = t.float64, t.int64, t.boolean, t.none
 F1, F2, F3, F4 = (t.Array(F, n, "C") for n in (1, 2, 3, 4))
 I1, I2, I3, I4 = (t.Array(I, n, "C") for n in (1, 2, 3, 4))
 B1, B2, B3, B4 = (t.Array(B, n, "C") for n in (1, 2, 3, 4))
@@ -26,8 +26,9 @@ HELPERS = {
         ("flowkit.integrate.kernel", "_gather", (F4, I1, I1, F2,)),
         ("flowkit.integrate.kernel", "_relocate", (F1, F1, F1, F1, F1, F4, I1, F, F, F, I1, F1,
          F2,)),
-        ("flowkit.integrate.kernel", "_norm3", (F, F, F,)),
-        ("flowkit.integrate.kernel", "_fc", (F, F, F, I, F1, F2, F2, I,)),
+        ("flowkit.integrate.cell", "_norm3", (F, F, F,)),
+        ("flowkit.integrate.cell", "_fc", (F, F, F, I, F1, F2, F2, I,)),
+        ("flowkit.integrate.rosenbrock", "initial_step", (F1, F, I,)),
         ("flowkit.integrate.kernel", "_scaled_rms", (F1, F1, F2, I, I,)),
         ("flowkit.integrate.kernel", "_initial_guess", (F1, F1, F2,)),
         ("flowkit.integrate.kernel", "_f", (F, F, F, I, B, F1, F1, F1, F1, F1, F4, I1, I1, F1, F2,
@@ -52,6 +53,8 @@ HELPERS = {
         ("flowkit.fields.interp", "guess_cell", (F1, F, F, F,)),
         ("flowkit.fields.interp", "prefetch_cell", (F4, I, F1, F1, F1, F1, F1, F, F, F, I,)),
         ("flowkit.integrate.kernel", "_stage_point", (F2, F2, I, F1, F, F1,)),
+        ("flowkit.integrate.kernel", "_stage", (F2, F1, F2, I, F1, F, F1, F, I, B, F1, F1, F1, F1,
+         F1, F4, I1, I1, F1, F2, N, F1,)),
         ("flowkit.integrate.kernel", "_err_rescaled", (F, F2, F1, F1, I, B, F1, F1, F1,)),
         ("flowkit.integrate.kernel", "_step_end", (F1, F2, F, F1, F1, F1, I, B, B, F1, F1,)),
         ("flowkit.integrate.kernel", "_retry", (F, F, B, F, F, F, F,)),
@@ -65,22 +68,27 @@ HELPERS = {
         ("flowkit.integrate.kernel", "_next_step", (F, F, F, F, F, B, F, F, F, F, F,)),
         ("flowkit.integrate.kernel", "pack", (I1, F3, F3, I1, F2, F1, F1, I1,)),
     ),
-    "flowkit.integrate.rosenbrock._lines": (
+    "flowkit.integrate.kernel._advance_lines:rosenbrock": (
         ("flowkit.integrate.stiffness", "cell_jacobian", (F2, F1, F, F, F, F2,)),
         ("flowkit.integrate.rosenbrock", "_rhs_jac", (F, F, F, I, F2, F1, F2, F1, F1,)),
         ("flowkit.integrate.rosenbrock", "_inv3", (F2, F2,)),
-        ("flowkit.integrate.rosenbrock", "_step", (F1, F, I, F1, F2, F2, F2, F1, F1, F1, F2, F2,
-         F2, F1, F1, F2, F2, F1, F1, F1,)),
+        ("flowkit.integrate.rosenbrock", "step", (F1, F, I, F1, F2, F2, F1, F2, F2, F2, F1, F1, F2,
+         F2, F1, F1, F1,)),
+        ("flowkit.integrate.rosenbrock", "hermite", (F1, F1, F2, F, I, F2,)),
         ("flowkit.integrate.stiffness", "spectral_radius_bound", (F2,)),
-        ("flowkit.integrate.rosenbrock", "_event", (F1, F1, F2, F, I, F1, F, F, F2, I,)),
     ),
-    "flowkit.integrate.pathlines._lines": (
-        ("flowkit.integrate.pathlines", "_axis", (F1, F, F, F,)),
+    "flowkit.integrate.kernel._advance_lines:pathlines": (
+        ("flowkit.integrate.unsteady", "_axis", (F1, F, F, F,)),
         ("flowkit.fields.interp", "upper", (I, I,)),
         ("flowkit.fields.interp", "corner", (I, I, I, I, I, I, I, F, F, F,)),
         ("flowkit.fields.interp", "finite_or_nan", (F, F, F,)),
         ("flowkit.fields.interp", "trilinear_vector", (F4, I, I, I, F, F, F,)),
-        ("flowkit.integrate.pathlines", "_velocity", (F, F, F, F, F1, F1, F1, F1, F1, F4, F4, F, F,
+        ("flowkit.integrate.unsteady", "velocity", (F, F, F, F, F1, F1, F1, F1, F1, F4, F4, F, F,
          F2, I,)),
+        ("flowkit.integrate.kernel", "_start_path", (I, I, F2, F1, F1, F1, F1, F1, F1, F4, F4, F1,
+         I, F1, F2, I2, F3, F3, I1, F2, F2, F1, I1, F1, F1,)),
+        ("flowkit.integrate.unsteady", "stage", (F1, F, F1, F1, F1, F1, F1, F4, F4, F1, F2, I,)),
+        ("flowkit.integrate.kernel", "_stage", (F2, F1, F2, I, F1, F, F1, F, I, B, F1, F1, F1, F1,
+         F1, F4, I1, I1, F1, F2, F4, F1,)),
     ),
 }

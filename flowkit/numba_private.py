@@ -12,7 +12,9 @@ alone (``cache=True``, numba's standard pipeline), only its first compile is slo
 - ``Lean``: numba's nopython pipeline less the passes for features the step code does not use
   (closures, ``with`` contexts, ``literally``, IR inlining, literal propagation) and its array
   rewrites; the step loops are the largest functions flowkit compiles, and those passes took
-  about a third of their front end's time (numba's per-pass timings).
+  about a third of their front end's time (numba's per-pass timings).  It keeps numba's dead
+  branch pruning: a step loop's ``if arg is None`` branches vanish where the argument is None,
+  so that one loop compiles to one variant per stepper and field evaluator.
 - ``HELPER_OPTIONS``: no NRT (helpers never allocate; reference counting their arrays cost more
   than their work), no CPython or cfunc wrapper (they are called from compiled code only), and
   ``forceinline`` for the helpers on a kernel's per-step path (compiled once, inlined by LLVM:
@@ -55,7 +57,8 @@ if os.environ.get("FLOWKIT_NUMBA_ACCELERATORS", "1") != "0":
         from numba.extending import intrinsic
 
         _PASSES = (untyped_passes.TranslateByteCode, untyped_passes.FixupArgs,
-                   untyped_passes.IRProcessing, untyped_passes.RewriteDynamicRaises,
+                   untyped_passes.IRProcessing, untyped_passes.DeadBranchPrune,
+                   untyped_passes.RewriteDynamicRaises,
                    untyped_passes.ReconstructSSA, typed_passes.NopythonTypeInference,
                    typed_passes.PreLowerStripPhis, typed_passes.InlineOverloads,
                    typed_passes.NoPythonSupportedFeatureValidation, typed_passes.IRLegalization,

@@ -25,8 +25,8 @@ cache already holds the kernel.
 Once the kernel's helpers are done, the other process has nothing to do for the seconds this one
 spends on the kernel's own lowering and LLVM work.  While this process lives (the other one reads
 its standard input until this one closes it, at exit), it goes on with the helpers of the
-kernels users add next: the Rosenbrock and pathline integrators.  Their first trace then only
-compiles its own kernel.
+kernels users add next: the tracing kernel's variants with the Rosenbrock stepper and for
+pathlines.  Their first trace then compiles only the step loop again.
 
 The helpers and their argument types are the table in ``helper_sigs.py``, written by ``python -m
 flowkit.write_helper_sigs`` from traces on an empty cache and checked by
@@ -56,9 +56,11 @@ from .numba_cache import in_disk_cache
 LOG = logging.getLogger("flowkit.compile")
 _started: set[str] = set()
 WAIT_S = 120.0  # the longest either process waits for the other's copy of one helper
-# the kernels whose helpers the other process compiles next, while this process lives
-NEXT = {"flowkit.integrate.kernel._advance_lines": ("flowkit.integrate.rosenbrock._lines",
-                                                   "flowkit.integrate.pathlines._lines")}
+# the kernels whose helpers the other process compiles next, while this process lives: the
+# tracing kernel's variants with the Rosenbrock stepper and for pathlines (their own helpers)
+NEXT = {"flowkit.integrate.kernel._advance_lines": (
+    "flowkit.integrate.kernel._advance_lines:rosenbrock",
+    "flowkit.integrate.kernel._advance_lines:pathlines")}
 
 
 def _cores() -> int:

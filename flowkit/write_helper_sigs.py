@@ -18,7 +18,7 @@ def _type_src(ty) -> str:
 
     if isinstance(ty, types.Array) and ty.layout == "C" and ty.mutable and ty.ndim <= 4:
         return f"{_type_src(ty.dtype)}{ty.ndim}"  # F2: a C-contiguous 2-d float64 array
-    names = {types.float64: "F", types.int64: "I", types.boolean: "B"}
+    names = {types.float64: "F", types.int64: "I", types.boolean: "B", types.none: "N"}
     if ty in names:
         return names[ty]
     raise ValueError(f"helper_sigs: no source form for the type {ty!r}")
@@ -30,7 +30,7 @@ def compile_order(run, kernel: str) -> list[tuple[str, str, tuple]]:
     typing asks for a helper's callees first), the kernel itself left out."""
     from numba.core import event
 
-    seen = {}  # (module, name) -> dispatcher, in the order they were compiled
+    seen = {}  # (module, name) -> argument types, in the order they were compiled
 
     class Listener(event.Listener):
         def on_start(self, ev):
@@ -39,16 +39,12 @@ def compile_order(run, kernel: str) -> list[tuple[str, str, tuple]]:
         def on_end(self, ev):
             d = ev.data["dispatcher"]
             name = (d.py_func.__module__, d.py_func.__qualname__)
-            if name[0].startswith("flowkit.") and ".".join(name) != kernel:
-                seen.setdefault(name, d)
+            if name[0].startswith("flowkit.") and ".".join(name) != kernel.split(":")[0]:
+                seen.setdefault(name, tuple(ev.data["args"]))
 
     with event.install_listener("numba:compile", Listener()):
         run()
-    out = []
-    for (m, n), d in seen.items():
-        (sig,) = d.signatures
-        out.append((m, n, tuple(sig)))
-    return out
+    return [(m, n, sig) for (m, n), sig in seen.items()]
 
 
 def write_table(path: Path | None = None) -> Path:
@@ -64,9 +60,9 @@ def write_table(path: Path | None = None) -> Path:
     # in this order, each after the one before (a helper already compiled is not listed again)
     kernels = {"flowkit.integrate.kernel._advance_lines":
                lambda: flowkit.trace(field, warmup.SEEDS, max_length=4.0),
-               "flowkit.integrate.rosenbrock._lines":
+               "flowkit.integrate.kernel._advance_lines:rosenbrock":
                lambda: flowkit.trace(field, warmup.SEEDS, max_length=4.0, method="ros34pw2"),
-               "flowkit.integrate.pathlines._lines":
+               "flowkit.integrate.kernel._advance_lines:pathlines":
                lambda: pathlines([(0.0, field), (1.0, warmup.stand_in(t=1.0))], warmup.SEEDS,
                                  max_time=1.0)}
     lines = ['"""The helpers each kernel\'s compilation asks for, with their argument types, in the',
@@ -74,7 +70,7 @@ def write_table(path: Path | None = None) -> Path:
              "on an empty cache; tests/test_compile_cost.py checks it against a default trace;",
              'flowkit/parallel_compile.py says what it is for)."""',
              "", "from numba.core import types as t", "",
-             "F, I, B = t.float64, t.int64, t.boolean",
+             "F, I, B, N = t.float64, t.int64, t.boolean, t.none",
              "F1, F2, F3, F4 = (t.Array(F, n, \"C\") for n in (1, 2, 3, 4))",
              "I1, I2, I3, I4 = (t.Array(I, n, \"C\") for n in (1, 2, 3, 4))",
              "B1, B2, B3, B4 = (t.Array(B, n, \"C\") for n in (1, 2, 3, 4))",

@@ -1,5 +1,5 @@
 """Fields larger than a memory budget, traced brick by brick: the same lines, attributes and
-reasons as in memory, bit for bit, for every explicit method, both directions, periodic axes,
+reasons as in memory, bit for bit, for every method, both directions, periodic axes,
 NaN holes across brick faces, real data and lazily computed inputs; reads only where lines go,
 each brick once when they fit; clear errors where a budget cannot hold a trace."""
 
@@ -62,6 +62,7 @@ CASES = {
     "dop853, arc length": {"max_length": 6.0, "method": "dop853", "parameter": "arc_length"},
     "resampled": {"max_length": 6.0, "count": 30, "direction": "both"},
     "loose, crossing faces": {"max_length": 8.0, "rtol": 1e-3},
+    "ros34pw2": {"max_length": 6.0, "method": "ros34pw2", "direction": "both"},
 }
 
 
@@ -71,6 +72,25 @@ def test_budgeted_traces_equal_traces_in_memory(case, tmp_path):
     _same(whole, lines)
     assert lines.attrs["bricks_read"] > 0
     assert len(lines) == len(SEEDS) and lines.offsets[-1] > 5 * len(SEEDS)
+
+
+def test_stiff_lines_switch_to_the_rosenbrock_stepper_under_a_budget(tmp_path):
+    """auto's lines go on with the Rosenbrock stepper where they are flagged stiff, brick by
+    brick as in memory."""
+    from flowkit.fields.analytic import LinearField
+
+    f = LinearField.stiff().to_field((9, 9, 33), bounds=[[-1, 1], [-1, 1], [0, 8]])
+    path = tmp_path / "stiff.h5"
+    save_field(Field(f.grid, f.vector.astype(np.float32), source="stiff"), path, compression=None)
+    with h5py.File(path, "a") as h:
+        a = h["vectors/U"][...]
+        del h["vectors/U"]
+        h.create_dataset("vectors/U", data=a, chunks=(4, 4, 4, 3))
+    seeds = np.random.default_rng(2).uniform([-0.9, -0.9, 0.1], [0.9, 0.9, 1.0], (12, 3))
+    whole, lines, _ = _budgeted(path, seeds, "40kB", method="auto", rtol=1e-6, atol=1e-6,
+                                max_time=5.0)
+    _same(whole, lines)
+    assert lines.line_data["ros34pw2"].sum() >= 6 and lines.attrs["bricks_read"] > 0
 
 
 def test_a_periodic_field_under_a_budget(tmp_path):
@@ -152,8 +172,8 @@ def test_a_budget_too_small_for_a_trace_is_a_named_error_and_leaves_no_file(tmp_
     err = capsys.readouterr().err
     assert rc == 2 and not out.exists() and "Traceback" not in err and err.count("\n") == 1
     assert str(path) in err and "20 kB" in err and "--memory 92.2 kB" in err
-    with pytest.raises(FieldMemoryError, match="method ros34pw2"):
-        trace(load_field(path), SEEDS, memory="120kB", method="ros34pw2")
+    with pytest.raises(FieldMemoryError, match="method auto without cell-aware stepping"):
+        trace(load_field(path), SEEDS, memory="120kB", method="auto", cell_aware=False)
     # with a budget that holds a trace, the CLI writes the lines and what it read
     assert main(["trace", str(path), "-o", str(out), "--seeds", "random:10", "--max-length", "4",
                  "--memory", "100kB", "--quiet"]) == 0

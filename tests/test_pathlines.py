@@ -77,14 +77,20 @@ def test_reasons_boundary_time_range_and_seed_outside():
         np.testing.assert_allclose(lines.line_attribute("arc_length", i), exact_s, atol=1e-7)
 
 
-def test_max_length_met_exactly():
+@pytest.mark.parametrize("direction", ["forward", "backward"])
+def test_max_length_met_exactly(direction):
+    """Both ways: the arc length is signed like the time (negative backward), its limit met on
+    the dense output."""
     seeds = np.array([[1.0, 0.0, 0.0]])
-    lines = P.pathlines(SERIES, seeds, 0.0, rtol=1e-9, max_length=1.5, attributes=("arc_length",))
+    back = direction == "backward"
+    lines = P.pathlines(SERIES, seeds, 2.0 if back else 0.0, rtol=1e-9, max_length=1.5,
+                        direction=direction, attributes=("arc_length",))
     assert lines.line_data["reason"][0] == Reason.MAX_LENGTH
-    assert abs(lines.point_data["arc_length"][-1] - 1.5) < 1e-12
+    assert abs(abs(lines.point_data["arc_length"][-1]) - 1.5) < 1e-12
     # radius 1: the arc length is the angle turned
     t = lines.point_data["time"][-1]
-    assert abs(FLOW.omega0 * t + 0.5 * FLOW.omega1 * t * t - 1.5) < 1e-7
+    turned = FLOW.omega0 * t + 0.5 * FLOW.omega1 * t * t
+    assert abs(abs(turned - (FLOW.omega0 * 2 + 2 * FLOW.omega1 if back else 0.0)) - 1.5) < 1e-7
 
 
 def test_at_most_two_snapshots_in_memory(tmp_path, monkeypatch):

@@ -11,11 +11,9 @@ from flowkit.cli import main
 from flowkit.fields.analytic import ABCFlow, LinearField, SolidBodyRotation
 from flowkit.fields.bricks import NO_BRICKS
 from flowkit.integrate import kernel as K
-from flowkit.integrate import rosenbrock as R
 from flowkit.integrate.methods import Method, MethodError, get_method
 from flowkit.integrate.options import OptionsError
 from flowkit.integrate.reasons import Reason
-from flowkit.integrate.rosenbrock import trace_rosenbrock
 from flowkit.integrate.stiffness import (
     HLAMBDA_STIFF,
     STIFF_STEPS,
@@ -111,19 +109,20 @@ def test_hairer_wanner_test_flags_the_stiff_field_and_not_a_mild_one():
 
 
 def test_ros34pw2_coefficients_give_order_3_and_l_stability():
-    G = R.GAMMAS + R.GAMMA * np.eye(4)
+    ros = get_method("ros34pw2")
+    G = ros.gammas + ros.gamma * np.eye(4)
 
     def stab(z, b):  # R(z) for y' = λy: (I - z(α + Γ)) k = z 1 y0
-        k = np.linalg.solve(np.eye(4) - z * (R.ALPHA + G), z * np.ones(4))
+        k = np.linalg.solve(np.eye(4) - z * (ros.alpha + G), z * np.ones(4))
         return 1 + b @ k
 
     for z, p in ((1e-2, 3), (1e-2, 2)):
-        b = R.B if p == 3 else R.BHAT
+        b = ros.b if p == 3 else ros.bhat
         ratio = abs(stab(z, b) - np.exp(z)) / abs(stab(z / 2, b) - np.exp(z / 2))
         assert abs(np.log2(ratio) - (p + 1)) < 0.2  # local error O(z^(p+1))
-    assert abs(stab(-1e10, R.B)) < 1e-8  # L-stable
+    assert abs(stab(-1e10, ros.b)) < 1e-8  # L-stable
     for z in (-1e4, -1.0, 1e3j, -5 + 50j):
-        assert abs(stab(z, R.B)) <= 1.0
+        assert abs(stab(z, ros.b)) <= 1.0
 
 
 def test_rosenbrock_beats_dopri5_tenfold_on_the_stiff_field():
@@ -131,7 +130,7 @@ def test_rosenbrock_beats_dopri5_tenfold_on_the_stiff_field():
     exact = STIFF.trajectory(SEEDS, T)
     res = {}
     for name, run in (("dopri5", lambda: trace(STIFF_GRID, SEEDS, rtol=1e-6, atol=1e-6, max_time=T)),
-                      ("ros34pw2", lambda: trace_rosenbrock(STIFF_GRID, SEEDS, rtol=1e-6, atol=1e-6,
+                      ("ros34pw2", lambda: trace(STIFF_GRID, SEEDS, method="ros34pw2", rtol=1e-6, atol=1e-6,
                                                             max_time=T))):
         L = run()
         assert np.all(L.line_data["reason"] == Reason.MAX_TIME)
@@ -149,7 +148,7 @@ def test_rosenbrock_records_stiffness_and_error_scales_with_tolerance():
     exact = STIFF.trajectory(SEEDS, T)
     errs = []
     for tol in (1e-4, 1e-7):
-        L = trace_rosenbrock(STIFF_GRID, SEEDS, rtol=tol, atol=tol, max_time=T)
+        L = trace(STIFF_GRID, SEEDS, method="ros34pw2", rtol=tol, atol=tol, max_time=T)
         assert np.all(L.line_data["stiff"] == 1) and np.all(L.line_data["stiff_steps"] >= 15)
         errs.append(np.abs(L.points[L.offsets[1:] - 1] - exact).max())
         assert errs[-1] < 20 * tol
@@ -157,7 +156,7 @@ def test_rosenbrock_records_stiffness_and_error_scales_with_tolerance():
     # a mild field is not stiff
     rot = SolidBodyRotation()
     fld = rot.to_field(9)
-    L = trace_rosenbrock(fld, [[0.5, 0.0, 0.1]], rtol=1e-6, atol=1e-6, max_time=3.0)
+    L = trace(fld, [[0.5, 0.0, 0.1]], method="ros34pw2", rtol=1e-6, atol=1e-6, max_time=3.0)
     assert L.line_data["stiff"][0] == 0 and L.line_data["stiff_steps"][0] == 0
     np.testing.assert_allclose(L.points[-1], rot.trajectory([[0.5, 0.0, 0.1]], 3.0)[0], atol=2e-5)
 
@@ -168,34 +167,34 @@ def test_rosenbrock_on_a_curved_grid_field_and_in_arc_length():
     ref = trace(fld, seeds, method="dop853", rtol=1e-12, atol=1e-12, max_length=2.0,
                 parameter="arc_length")
     for tol in (1e-5, 1e-8):
-        L = trace_rosenbrock(fld, seeds, rtol=tol, atol=tol, max_length=2.0, parameter="arc_length")
+        L = trace(fld, seeds, method="ros34pw2", rtol=tol, atol=tol, max_length=2.0, parameter="arc_length")
         assert np.all(L.line_data["reason"] == Reason.MAX_LENGTH)
         err = np.abs(L.points[L.offsets[1:] - 1] - ref.points[ref.offsets[1:] - 1]).max()
         assert err < 50 * tol, (tol, err)
         # time mode reaches the same curve: arc length integrated as the 4th component
-        Lt = trace_rosenbrock(fld, seeds, rtol=tol, atol=tol, max_length=2.0)
+        Lt = trace(fld, seeds, method="ros34pw2", rtol=tol, atol=tol, max_length=2.0)
         assert np.all(Lt.line_data["reason"] == Reason.MAX_LENGTH)
         assert np.abs(Lt.points[Lt.offsets[1:] - 1] - ref.points[ref.offsets[1:] - 1]).max() < 50 * tol
 
 
 def test_rosenbrock_terminations():
     # leaves the box at z = 10 exactly
-    L = trace_rosenbrock(STIFF_GRID, SEEDS[:1], rtol=1e-6, atol=1e-6)
+    L = trace(STIFF_GRID, SEEDS[:1], method="ros34pw2", rtol=1e-6, atol=1e-6)
     assert L.line_data["reason"][0] == Reason.OUT_OF_DOMAIN
     assert abs(L.points[-1, 2] - 10.0) < 1e-9
     # seed outside: no vertex; a long line through tiny buffers: nothing truncated
-    L = trace_rosenbrock(STIFF_GRID, [[5.0, 0, 0], [0.5, -0.3, 0.0]], rtol=1e-9, atol=1e-9,
+    L = trace(STIFF_GRID, [[5.0, 0, 0], [0.5, -0.3, 0.0]], method="ros34pw2", rtol=1e-9, atol=1e-9,
                          max_steps=10_000)
     assert L.line_data["reason"][0] == Reason.SEED_OUTSIDE and L.offsets[1] == 0
     assert L.line_data["reason"][1] == Reason.OUT_OF_DOMAIN and len(L[1].points) > 1024
     # step budget
-    L = trace_rosenbrock(STIFF_GRID, SEEDS[:1], rtol=1e-9, atol=1e-9, max_steps=20)
+    L = trace(STIFF_GRID, SEEDS[:1], method="ros34pw2", rtol=1e-9, atol=1e-9, max_steps=20)
     assert L.line_data["reason"][0] == Reason.MAX_STEPS
     assert L.line_data["n_accepted"][0] + L.line_data["n_rejected"][0] == 20
     # a NaN hole ahead: stops before it, every vertex finite
     fld = STIFF.to_field((4, 4, 11))
     fld.vector[:, :, 6:] = np.nan
-    L = trace_rosenbrock(fld, SEEDS[:1], rtol=1e-6, atol=1e-6)
+    L = trace(fld, SEEDS[:1], method="ros34pw2", rtol=1e-6, atol=1e-6)
     assert L.line_data["reason"][0] == Reason.NAN_FIELD
     assert np.all(np.isfinite(L.points)) and L.points[-1, 2] <= 5.0 + 1e-9
 
@@ -257,7 +256,7 @@ def test_ros34pw2_through_trace_both_directions_and_its_limits():
     np.testing.assert_allclose(t[L.offsets[:-1]], -2.0)
     np.testing.assert_allclose(t[L.offsets[1:] - 1], 2.0)
     # the wrapper is trace(method="ros34pw2")
-    one = trace_rosenbrock(fld, seeds, rtol=1e-7, atol=1e-7, max_time=2.0)
+    one = trace(fld, seeds, method="ros34pw2", rtol=1e-7, atol=1e-7, max_time=2.0)
     assert one.equals(trace(fld, seeds, method="ros34pw2", rtol=1e-7, atol=1e-7, max_time=2.0))
     with pytest.raises(OptionsError, match="ros34pw2.*spacing"):
         trace(fld, seeds, method="ros34pw2", spacing=0.1)
@@ -275,6 +274,12 @@ def test_auto_switches_stiff_lines_to_ros34pw2():
     assert np.all(L.line_data["reason"] == Reason.MAX_TIME)
     assert np.abs(L.points[L.offsets[1:] - 1] - exact).max() < 20e-6
     assert np.all(10 * L.line_data["n_accepted"] <= dp.line_data["n_accepted"])
+    # each line switches in place: dopri5's line up to the step its test flags it (at least
+    # STIFF_STEPS steps on), the Rosenbrock stepper's after
+    for i in range(len(SEEDS)):
+        a, b = L.line_points(i), dp.line_points(i)
+        same = np.flatnonzero(np.any(a[:len(b)] != b[:len(a)], axis=1))[0]
+        assert STIFF_STEPS < same < 200, same
     # a mixed batch: the stiff seed switches, the mild ones (rotation) are dopri5's lines
     rot = SolidBodyRotation().to_field(9)
     seeds = [[0.5, 0.0, 0.1], [0.2, -0.3, 0.0]]

@@ -272,7 +272,7 @@ class BlockRun:
                  retries: int = 2, budget: int | None = None, load=None,
                  balance: bool = True):
         entry = opts.entry
-        if entry.explicit is None or entry.retrace is not None:
+        if entry.explicit is None or entry.switch_to is not None:
             raise ValueError(f"method {entry.name}: block mode runs the explicit methods (a field "
                              f"read brick by brick)")
         self.client, self.retries, self.why = client, retries, why

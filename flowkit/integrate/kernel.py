@@ -34,11 +34,14 @@ import math
 import numpy as np
 from numba import njit
 
+from .. import compile_notice
 from ..fields.bricks import B_COUNT, B_NODES, B_SIZE, B_TABLE
 from ..fields.interp import locate_axis, prefetch_cell, prefetch_corners
 from ..jit import helper, inline, kernel
 from ..jit import prefetch as _prefetch  # noqa: F401 (lanes.py, benchmarks)
 from ..threads import run_ranges
+from . import rosenbrock
+from .cell import NORM_HUGE, NORM_TINY, _fc, _norm3  # noqa: F401 (lanes.py, OpenCL)
 from .reasons import Reason
 
 # the state, option and method-info columns (schema.py), all of them: callers address them as
@@ -61,8 +64,10 @@ from .schema import (  # noqa: F401
     I_NACC,
     I_NCROSS,
     I_NREJ,
+    I_NSTIFF,
     I_PEND,
     I_REASON,
+    I_ROS,
     I_STATUS,
     I_STIFF,
     I_WAIT,
@@ -97,6 +102,7 @@ from .schema import (  # noqa: F401
     P_MAXSTEPS,
     P_PARAM,
     P_PASS,
+    P_ROS,
     P_STIFF,
     PASS_FINISH,
     PASS_FULL,
@@ -120,7 +126,14 @@ from .schema import (  # noqa: F401
     S_Y,
     S_Y0,
 )
-from .stiffness import stage_hlambda, stiff_update
+from .stiffness import (
+    HLAMBDA_STIFF,
+    STIFF_BIT,
+    spectral_radius_bound,
+    stage_hlambda,
+    stiff_update,
+)
+from .unsteady import stage, velocity
 
 # P_CROSS (cell-aware, adaptive): a step the controller wants longer than the cell cap is tried
 # across faces, each stage in its own cell, and kept when its error estimate passes; otherwise
@@ -134,7 +147,6 @@ KINK_BACKOFF_BITS, KINK_FAIL_MAX = 2, 10
 
 # The step loop's other tuning constants, by name: the OpenCL template renders these very values
 # (opencl/codegen.py reads every upper-case number of this module)
-NORM_TINY, NORM_HUGE = 1e-150, 1e150  # _norm3 rescales a norm outside (squares over/underflow)
 ERR_TINY, ERR_HUGE = 1e-250, 1e250  # _step_end: the same for the error norm's sum of squares
 E3_WEIGHT = 0.01  # DOP853's error norm |e5|² / sqrt(|e5|² + E3_WEIGHT |e3|²) (Hairer)
 NAN_SHRINK = 0.25  # _retry: a step that met NaN data is tried again this much shorter
@@ -145,8 +157,11 @@ EXPO1_BETA = 0.75  # the controller's error exponent 1/k - EXPO1_BETA beta (Hair
 # max is below HINIT_FLAT, max(HINIT_H, HINIT_SHRINK h0)), the step min(HINIT_GROW h0, h1)
 HINIT_TINY, HINIT_H, HINIT_FRAC, HINIT_FLAT = 1e-5, 1e-6, 0.01, 1e-15
 HINIT_SHRINK, HINIT_GROW = 1e-3, 100.0
+HINIT_MIN_STEP = 1e-300  # _start_path: the shortest first guess (a release at an interval's end)
 H_AT_REST = 1.0  # _start: the first step of a line whose seed is at rest (it stagnates at once)
 ROOT_ITERS, ROOT_TOL = 60, 4e-16  # _root: Newton iterations at most, and the θ it resolves
+NO_TIMES = np.zeros(0)  # tp of a steady field
+DENSE_DEGREE = np.int64(rosenbrock.DENSE_DEGREE)  # the Rosenbrock stepper's (typed: a helper's argument)
 END_DUP = 1e-9  # _emit_pending: a resampled vertex this close to the end (in spacings) is the end
 
 R_OUT = int(Reason.OUT_OF_DOMAIN)
@@ -343,48 +358,6 @@ def _copy_cell(ci, cf, coef, ci_to, cf_to, coef_to):
 
 
 @inline
-def _norm3(u, v, w):
-    """|(u, v, w)|: the plain formula, rescaled by the largest component only where the squares
-    would overflow or underflow (so normal speeds stay bit-identical to the OpenCL kernel's)."""
-    sp = math.sqrt(u * u + v * v + w * w)
-    if not (sp > NORM_TINY and sp < NORM_HUGE):
-        m = max(abs(u), abs(v), abs(w))
-        if m > 0.0 and m < math.inf:
-            a, b, c = u / m, v / m, w / m
-            sp = m * math.sqrt(a * a + b * b + c * c)
-    return sp
-
-
-@inline
-def _fc(px, py, pz, param, cf, coef, k, row):
-    """Right-hand side from the current cell's polynomial into k[row, 0:4]; returns |v|."""
-    tx = (px - cf[0]) * cf[6]
-    ty = (py - cf[1]) * cf[7]
-    tz = (pz - cf[2]) * cf[8]
-    u = coef[0, 0] + tx * (coef[1, 0] + ty * (coef[4, 0] + tz * coef[7, 0]) + tz * coef[5, 0]) \
-        + ty * (coef[2, 0] + tz * coef[6, 0]) + tz * coef[3, 0]
-    v = coef[0, 1] + tx * (coef[1, 1] + ty * (coef[4, 1] + tz * coef[7, 1]) + tz * coef[5, 1]) \
-        + ty * (coef[2, 1] + tz * coef[6, 1]) + tz * coef[3, 1]
-    w = coef[0, 2] + tx * (coef[1, 2] + ty * (coef[4, 2] + tz * coef[7, 2]) + tz * coef[5, 2]) \
-        + ty * (coef[2, 2] + tz * coef[6, 2]) + tz * coef[3, 2]
-    sp = _norm3(u, v, w)
-    if param == 0:
-        k[row, 0] = u
-        k[row, 1] = v
-        k[row, 2] = w
-        k[row, 3] = sp
-    else:
-        r = 1.0 / sp
-        k[row, 0] = u * r
-        k[row, 1] = v * r
-        k[row, 2] = w * r
-        k[row, 3] = r
-    return sp
-
-
-
-
-@inline
 def _f(px, py, pz, param, aware, gx, gy, gz, period, inv, vec, bk, ci, cf, coef, k, row):
     """Right-hand side at p: cell-aware, the current cell's polynomial; otherwise the polynomial
     of the cell holding p, looked up unless p is strictly inside the cached cell.  A point on a
@@ -497,6 +470,21 @@ def _stage_point(ma, k, st, y, hs, yt):
 
 
 # -- dense output -----------------------------------------------------------------------------
+@inline
+def _stage(ma, mc, k, st, y, hs, yt, tau, param, inc, gx, gy, gz, period, inv, vec, bk, ci, cf,
+           coef, vb, tp):
+    """Stage st of an explicit step of hs from (y, tau): its point into yt, the field there into
+    k[st], by the loop's evaluator: the two snapshots ``vec`` and ``vb`` (pathlines, vb not
+    None), the cell the step starts in (``inc``), or the cell holding the point."""
+    _stage_point(ma, k, st, y, hs, yt)
+    if vb is not None:
+        stage(yt, tau + mc[st] * hs, gx, gy, gz, period, inv, vec, vb, tp, k, st)
+    elif inc:
+        _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
+    else:
+        _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, bk, ci, cf, coef, k, st)
+
+
 @inline
 def _dense(qd, comp, q, y0, hs, th):
     """y0 + hs * Σ_j Q[comp, j] θ^(j+1), Q the step's dense coefficients (4, QMAX)."""
@@ -733,10 +721,12 @@ def _stalled(sf, l, y1, t1, fo):
 @inline
 def _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax, beta, expo1):
     """Hairer's PI controller with Gustafsson's memory, after an accepted step of hs (h: the
-    step the controller had asked for): (next step, errp, errp ** beta).  Shared with the
-    pathline kernel."""
+    step the controller had asked for): (next step, errp, errp ** beta).  beta = 0 (the
+    Rosenbrock stepper's): the I-controller, in the reject rule's form."""
     if err == 0.0:
         g = facmax
+    elif beta == 0.0:
+        g = min(facmax, max(facmin, safety * err ** (-expo1)))
     else:
         g = min(facmax, max(facmin, safety * errpb / err ** expo1))
     if last_rej:
@@ -859,8 +849,12 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, bk, kexp,
         si[l, I_REASON] = R_SEED
         return False
     y[0], y[1], y[2], y[3] = px, py, pz, 0.0
+    ros_first = io[P_ROS] != 0  # (the Rosenbrock stepper from the seed)
+    si[l, I_ROS] = 1 if ros_first else 0
     h = fo[O_H0]
-    if h <= 0.0 and sp > 0.0:
+    if h <= 0.0 and ros_first:
+        h = rosenbrock.initial_step(cf, sp, param)
+    elif h <= 0.0 and sp > 0.0:
         h0, d1 = _initial_guess(fo, y, k)
         for a in range(3):
             yt[a] = y[a] + d * h0 * k[0, a]
@@ -887,6 +881,45 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, bk, kexp,
     return True
 
 
+@helper
+def _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, v0, v1, tp, kexp, fo, sf, si,
+                out_p, out_par, out_n, k, coef, cf, ci, y, yt):
+    """``_start`` for a pathline: released at tp[3 + l] into the field between the snapshots
+    v0 and v1 (at tp[0], tp[1]); its initial step no longer than the time left to tp[2]."""
+    d = dirs[l]
+    px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
+    inside = True
+    for a in range(3):
+        c = gx if a == 0 else (gy if a == 1 else gz)
+        if period[a] == 0.0 and not (c[0] <= seeds[l, a] <= c[c.size - 1]):
+            inside = False
+    t = tp[3 + l]
+    if not (inside and velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, tp[0], tp[1], k,
+                                np.int64(0))):
+        si[l, I_STATUS] = DONE
+        si[l, I_REASON] = R_SEED
+        return False
+    y[0], y[1], y[2], y[3] = px, py, pz, 0.0
+    hmax = fo[O_HMAX]
+    h = fo[O_H0]
+    if h <= 0.0:
+        h0, d1 = _initial_guess(fo, y, k)
+        h0 = min(h0, hmax, max(abs(tp[2] - t), HINIT_MIN_STEP))
+        for a in range(3):
+            yt[a] = y[a] + d * h0 * k[0, a]
+        ok = velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv, v0, v1, tp[0],
+                      tp[1], k, np.int64(1))
+        h = _initial_step(fo, y, k, h0, d1, kexp, ok)
+    h = d * min(h, hmax)
+    zero = np.int64(0)
+    _store(sf, si, l, y, k, t, h, ERRP_MIN, zero, zero, np.bool_(False), abs(h), zero, zero, zero,
+           cf, ci)
+    si[l, I_PEND] = si[l, I_FINAL] = 0
+    si[l, I_STATUS] = RUNNING
+    _put(out_p, out_par, out_n, slot, px, py, pz, t, 0.0)
+    return True
+
+
 # Compiled without NRT, so without reference counting: every array here is the caller's.  With
 # NRT, each array handed to an inlined helper in the step loop cost an atomic increment and
 # decrement, a fifth of a plain rk4 step's time (measured); NRT cannot allocate, hence the
@@ -894,15 +927,26 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, bk, kexp,
 @kernel(nogil=True, error_model="numpy")
 def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, gz, period, inv,
                    vec, bk, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_par, out_n,
-                   k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd, coef0, cf0, ci0, yk_s, coef_s,
-                   cf_s, ci_s):
+                   vb, tp, ros, k, coef, cf, ci, y, yt, ys, y1, dlo, dhi, qd, coef0, cf0, ci0,
+                   yk_s, coef_s, cf_s, ci_s, kk, J, W, Wi, g, u, rhs):
     """The lines ``active[start:stop]`` one after the other (slots start..stop-1), without the
     GIL, so that threads run ranges side by side (``threads.run_ranges``).
 
     A bricked field (``bk`` not empty): a step commits nothing until every cell it reads is
     resident.  Each step starts from a copy of the line's point, k0 and cell (``*_s``); where a
     cell's brick is missing (ci[3]), the line goes back to that copy and suspends, waiting for
-    the brick (si[l, I_WAIT]), to take the same step again once it is there."""
+    the brick (si[l, I_WAIT]), to take the same step again once it is there.
+
+    The field evaluator and the stepper are compile-time choices: numba compiles this loop once
+    per type of ``vb`` and ``ros`` and drops the branches of the ones that are None (arrays
+    inside a tuple cannot be handed on without NRT).  ``vb``, for pathlines: the snapshot at
+    time tp[1], ``vec`` the one at tp[0]; the field between them (``unsteady.py``; plain
+    stepping, time the parameter ``tau``, absolute); lines start at their release times
+    ``tp[3 + l]`` and stop at tp[2], the end of the interval, to go on in the next one.
+    ``ros``: the Rosenbrock stepper's table (``rosenbrock.table``), for the lines with
+    si[l, I_ROS] set: from their seeds (io[P_ROS]), or from the step where the explicit
+    stepper's stiffness test flags them (``auto``); cell-aware, never across faces, with the
+    I-controller and its Hermite dense output; kk, J, W, Wi, g, u, rhs its scratch."""
     S, n_err, fs, adaptive, kexp = mi[M_STAGES], mi[M_NERR], mi[M_FSAL], mi[M_ADAPTIVE] != 0, mi[M_KEXP]
     has_e2 = mi[M_HASE2] != 0
     C0, C1, C2, C3 = np.int64(0), np.int64(1), np.int64(2), np.int64(3)  # typed (see helper)
@@ -920,6 +964,9 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
     r_dep = R_MAXLEN if param == 0 else R_MAXTIME
     expo1 = 1.0 / kexp - EXPO1_BETA * beta
     n_step = max(n_err, fs + 1)  # the stages of every step (the last one: f(y1))
+    if ros is not None:  # its f(y1) row, controller exponent
+        ns = np.int64(ros.shape[0] - 1)
+        expo1_ros = 1.0 / ros[ns, 0]
     B = out_p.shape[1]
     mode = io[P_PASS]
     bricked = bk.size > 0
@@ -940,20 +987,37 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
         dlo[0], dlo[1], dlo[2] = gx[0], gy[0], gz[0]
         dhi[0], dhi[1], dhi[2] = gx[gx.size - 1], gy[gy.size - 1], gz[gz.size - 1]
 
-        if si[l, I_STATUS] == NEW and not _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv,
-                                                  vec, bk, kexp, fo, io, sf, si, out_p, out_par, out_n,
-                                                  k, coef, cf, ci, y, yt, dlo, dhi):
-            si[l, I_WAIT] = ci[3] + 1
-            continue
+        if si[l, I_STATUS] == NEW:
+            if vb is None:
+                started = _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, bk,
+                                 kexp, fo, io, sf, si, out_p, out_par, out_n, k, coef, cf, ci, y,
+                                 yt, dlo, dhi)
+            else:
+                started = _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, vec,
+                                      vb, tp, kexp, fo, sf, si, out_p, out_par, out_n, k, coef,
+                                      cf, ci, y, yt)
+            if not started:
+                si[l, I_WAIT] = ci[3] + 1
+                continue
+        if vb is None:  # the parameter's value at the limit
+            tau_lim = d * lim_ind
+        else:
+            tau_lim = tp[3 + l] + d * lim_ind
+        # the stepper's: f(y1) row, dense degree, controller, cell-aware, adaptive, crossing
+        rosl = False
+        fsl, ql, expo1l, betal, awl, adl, crossl = fs, q, expo1, beta, aware, adaptive, cross
+        if ros is not None and si[l, I_ROS] != 0:
+            rosl = True
+            fsl, ql, expo1l, betal, awl, adl, crossl = ns, DENSE_DEGREE, expo1_ros, 0.0, True, True, False
         # (a new line starts from the state _start wrote, as a suspended line resumes)
-        tau, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, np.int64(I_LASTREJ), beta)
+        tau, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, np.int64(I_LASTREJ), betal)
         hk = sf[l, S_HK]
         n_cross, kfail, kwait = si[l, I_NCROSS], si[l, I_KFAIL], si[l, I_KWAIT]
         # the line's cell as it was: cell-aware, the one it steps in; plain on a periodic grid,
         # the cached one (a periodic cell's faces carry the rounding of the point that found
         # it, so a cell found again could differ in the last bit: a suspended line resumes bit
         # for bit only so; elsewhere the cell found again is the same)
-        if aware or (wraps and si[l, I_CELL] >= 0):
+        if awl or (wraps and si[l, I_CELL] >= 0):
             for a in range(3):
                 ci[a] = si[l, I_CELL + a]
                 cf[a] = sf[l, S_LO + a]
@@ -965,7 +1029,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             if ci[3] >= 0:
                 si[l, I_WAIT] = ci[3] + 1
                 continue
-        if not _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B):
+        if not _emit_pending(l, slot, sf, si, d, param, ql, spacing, phase, out_p, out_par, out_n, B):
             continue
 
         reason = -1
@@ -976,9 +1040,17 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 suspended = True
                 break
             speed = k[0, 3] if param == 0 else 1.0 / k[0, 3]
-            if not (speed >= stag) or speed == 0.0:
-                reason = R_STAG
-                break
+            if vb is None:
+                if not (speed >= stag) or speed == 0.0:
+                    reason = R_STAG
+                    break
+            else:  # at the interval's end: on in the next one; at rest now, it may move later
+                if tau == tp[2]:
+                    suspended = True
+                    break
+                if stag > 0.0 and not (speed >= stag):
+                    reason = R_STAG
+                    break
             if n_acc + n_rej >= max_steps:
                 reason = R_MAXSTEPS
                 break
@@ -989,7 +1061,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 _copy_cell(ci, cf, coef, ci_s, cf_s, coef_s)
                 hk_s, kwait_s = hk, kwait
             # where the line stands: on a face moving outwards -> next cell, or out of the domain
-            if aware:
+            if awl:
                 reason = _onto_next_cell(d, y, k, param, gx, gy, gz, period, vec, bk, ci, cf, coef)
                 if ci[3] >= 0:
                     reason = -1
@@ -1011,28 +1083,38 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             long = False
             t_exit = np.inf
             ax_exit = -1
-            if aware:  # (fixed steps too: their stages would extend the cell's polynomial far out)
+            if awl:  # (fixed steps too: their stages would extend the cell's polynomial far out)
                 t_exit, ax_exit = _exit_time(d, y, k, cf)
                 cap = cellfac * t_exit
                 if cap > 0.0 and abs(hs) > cap:
-                    if cross and kwait == 0 and hk > KINK_CELLS * cap:
+                    if crossl and kwait == 0 and hk > KINK_CELLS * cap:
                         hs = d * min(abs(hs), hk)
                         long = True
                     else:
                         hs = d * cap
-                        if cross:  # (the crossing controller's state, only where it is used)
+                        if crossl:  # (the crossing controller's state, only where it is used)
                             hk *= KINK_GROW
                             kwait = max(kwait - 1, 0)
             hit_lim = False
-            rem = lim_ind - abs(tau)
+            hit_goal = False  # (pathlines) the step ends at the interval's end
+            if vb is None:
+                rem = lim_ind - abs(tau)
+            else:
+                rem = d * (tau_lim - tau)
+                rem_goal = d * (tp[2] - tau)
+                if rem_goal < rem:
+                    rem = rem_goal
+                    hit_goal = True
             if abs(hs) >= rem:
                 hs = d * rem
-                hit_lim = True
+                hit_lim = not hit_goal
+            else:
+                hit_goal = False
             # fetch the cells the step is headed for (predicted along k0) now, so that their memory
             # latency overlaps the arithmetic instead of stalling a dependent chain: cell-aware, the
             # end's (gathered at the face); plain, each stage's (a step spans cells, each stage
             # gathers its own)
-            inc = aware and not long  # every stage from the cell the step starts in
+            inc = awl and not long  # every stage from the cell the step starts in
             if long:
                 _copy_cell(ci, cf, coef, ci0, cf0, coef0)
             # (not in a bricked field's pool, whose layout is not the grid's)
@@ -1057,36 +1139,37 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                                              y[2] + ch * k[0, 2], last)
 
             # stages
-            for st in range(1, n_err):
-                _stage_point(ma, k, st, y, hs, yt)
-                if st == st_stiff:
-                    ys[0], ys[1], ys[2] = yt[0], yt[1], yt[2]
-                if inc:
-                    _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
-                else:
-                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, bk, ci, cf, coef, k, st)
-            dep1, err, finite = _step_end(y, k, hs, mb, me, me2, n_err, adaptive, has_e2, fo, y1)
-            y1x, y1y, y1z = y1[0], y1[1], y1[2]
-            if finite and not (adaptive and err > 1.0):  # the remaining stages up to f(y1)
-                for st in range(n_err, fs + 1):
-                    _stage_point(ma, k, st, y, hs, yt)
-                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, bk, ci, cf, coef,
-                       k, st)
-                if long:
-                    # the kink bound: the field at y1 against the start cell's polynomial there,
-                    # times the time past the first face, bounds what the faces' kinks moved y1
-                    # (the embedded estimate, blind to kinks, sees a fraction of it)
-                    t_past = abs(hs) - t_exit
-                    _fc(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
-                    ek = 0.0
-                    for a in range(3):
-                        sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
-                        ek += ((k[S, a] - k[fs, a]) * t_past / sc) ** 2
-                    ek = math.sqrt(ek / 3.0)
-                    if math.isfinite(ek):
-                        err = max(err, ek)
-                    else:
-                        finite = False
+            if ros is not None and rosl:
+                err, finite = rosenbrock.step(y, hs, param, cf, coef, ros, fo, k, kk, J, g, u, W,
+                                             Wi, yt, rhs, y1)
+                y1x, y1y, y1z, dep1 = y1[0], y1[1], y1[2], y1[3]
+            else:
+                for st in range(1, n_err):
+                    _stage(ma, mc, k, st, y, hs, yt, tau, param, inc, gx, gy, gz, period, inv, vec,
+                           bk, ci, cf, coef, vb, tp)
+                    if st == st_stiff:
+                        ys[0], ys[1], ys[2] = yt[0], yt[1], yt[2]
+                dep1, err, finite = _step_end(y, k, hs, mb, me, me2, n_err, adaptive, has_e2, fo, y1)
+                y1x, y1y, y1z = y1[0], y1[1], y1[2]
+                if finite and not (adaptive and err > 1.0):  # the remaining stages up to f(y1)
+                    for st in range(n_err, fs + 1):
+                        _stage(ma, mc, k, st, y, hs, yt, tau, param, inc, gx, gy, gz, period, inv,
+                               vec, bk, ci, cf, coef, vb, tp)
+                    if long:
+                        # the kink bound: the field at y1 against the start cell's polynomial there,
+                        # times the time past the first face, bounds what the faces' kinks moved y1
+                        # (the embedded estimate, blind to kinks, sees a fraction of it)
+                        t_past = abs(hs) - t_exit
+                        _fc(y1x, y1y, y1z, param, cf0, coef0, k, np.int64(S))
+                        ek = 0.0
+                        for a in range(3):
+                            sc = fo[O_ATOL + a] + fo[O_RTOL + a] * max(abs(y[a]), abs(y1[a]))
+                            ek += ((k[S, a] - k[fs, a]) * t_past / sc) ** 2
+                        ek = math.sqrt(ek / 3.0)
+                        if math.isfinite(ek):
+                            err = max(err, ek)
+                        else:
+                            finite = False
             if ci[3] >= 0:  # a brick is missing
                 suspended = True
                 break
@@ -1103,11 +1186,11 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 continue
             # rejected: NaN data met by a stage, an error above the tolerance, or y1 itself in
             # a NaN cell (f(y1), computed once the step passed its error test)
-            too_big = adaptive and err > 1.0
-            if not finite or too_big or not math.isfinite(k[fs, 0] + k[fs, 1] + k[fs, 2] + k[fs, 3]):
+            too_big = adl and err > 1.0
+            if not finite or too_big or not math.isfinite(k[fsl, 0] + k[fsl, 1] + k[fsl, 2] + k[fsl, 3]):
                 n_rej += 1
                 last_rej = True
-                h, reason = _retry(hs, err, not finite or not too_big, hmin, safety, facmin, expo1)
+                h, reason = _retry(hs, err, not finite or not too_big, hmin, safety, facmin, expo1l)
                 if reason >= 0:
                     break
                 continue
@@ -1125,10 +1208,12 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 elif period[a] == 0.0 and (v1 < dlo[a] or v1 > dhi[a]):
                     need_face = True
             need_dep = abs(dep1) >= lim_dep
-            if need_face or need_dep or emit == EMIT_SPACING:
+            if ros is not None and rosl and (need_face or need_dep):
+                rosenbrock.hermite(y, y1, k, hs, ns, qd)
+            elif need_face or need_dep or emit == EMIT_SPACING:
                 for st in range(fs + 1, S):  # stages only the dense output uses
-                    _stage_point(ma, k, st, y, hs, yt)
-                    _f(yt[0], yt[1], yt[2], param, inc, gx, gy, gz, period, inv, vec, bk, ci, cf, coef, k, st)
+                    _stage(ma, mc, k, st, y, hs, yt, tau, param, inc, gx, gy, gz, period, inv, vec,
+                           bk, ci, cf, coef, vb, tp)
                 for a in range(4):
                     for j in range(q):
                         acc = 0.0
@@ -1150,10 +1235,10 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                     else:
                         continue
                     if v1 < lo_a:
-                        tha = _root(qd, a, q, y[a], hs, lo_a, -1.0, 1.0)
+                        tha = _root(qd, a, ql, y[a], hs, lo_a, -1.0, 1.0)
                         face = lo_a
                     elif v1 > hi_a:
-                        tha = _root(qd, a, q, y[a], hs, hi_a, 1.0, 1.0)
+                        tha = _root(qd, a, ql, y[a], hs, hi_a, 1.0, 1.0)
                         face = hi_a
                     else:
                         continue
@@ -1163,7 +1248,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                         ev_face = face
                         ev = EV_FACE
             if need_dep:
-                thd = _root(qd, C3, q, y[3], hs, d * lim_dep, d, 1.0)
+                thd = _root(qd, C3, ql, y[3], hs, d * lim_dep, d, 1.0)
                 if ev == EV_NONE or thd < th:
                     th = thd
                     ev = EV_DEPLIM
@@ -1179,16 +1264,25 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 if ci[3] >= 0:
                     suspended = True
                     break
-            if adaptive and _stalled(sf, l, y1, (d * lim_ind if hit_lim else tau + hs)
-                                     if param == 0 else dep1, fo):
+            # (pathlines: a particle at rest now may move later)
+            if vb is None and adl and _stalled(sf, l, y1, (tau_lim if hit_lim else tau + hs)
+                                                      if param == 0 else dep1, fo):
                 reason = R_STAG
                 break
-            if st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
+            to_ros = False
+            if ros is not None and rosl:  # h ρ(J), ρ bounded by the row sums
+                hlam = abs(hs) * spectral_radius_bound(J)
+                si[l, I_STIFF] = stiff_update(si[l, I_STIFF], hlam)
+                if hlam > HLAMBDA_STIFF:
+                    si[l, I_NSTIFF] += 1
+            elif st_stiff >= 0:  # Hairer & Wanner's stiffness test on the accepted step
                 si[l, I_STIFF] = stiff_update(si[l, I_STIFF],
                                               stage_hlambda(hs, k, fs, st_stiff, ys, y1))
-            if adaptive:
+                # (auto: a line flagged stiff goes on with the Rosenbrock stepper)
+                to_ros = ros is not None and (si[l, I_STIFF] & STIFF_BIT) != 0
+            if adl:
                 hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin,
-                                                facmax, beta, expo1)
+                                                facmax, betal, expo1l)
             else:
                 hnext = h
             last_rej = False
@@ -1205,9 +1299,11 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 sf[l, S_TH] = th
             if ev == EV_NONE:
                 y[0], y[1], y[2], y[3] = y1x, y1y, y1z, dep1
-                tau = d * lim_ind if hit_lim else tau + hs
+                tau = tau_lim if hit_lim else tau + hs
+                if vb is not None and hit_goal:
+                    tau = tp[2]
                 for a in range(4):
-                    k[0, a] = k[fs, a]
+                    k[0, a] = k[fsl, a]
                 if long:  # the line's cell is now the one y1 lies in
                     n_cross += 1
                     kfail = 0
@@ -1218,15 +1314,16 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                         # on a shared face: the same value)
                         _relocate(gx, gy, gz, period, inv, vec, bk, y[0], y[1], y[2], ci, cf, coef)
             else:
-                ynew0 = _dense(qd, C0, q, y[0], hs, th)
-                ynew1 = _dense(qd, C1, q, y[1], hs, th)
-                ynew2 = _dense(qd, C2, q, y[2], hs, th)
-                ydep = d * lim_dep if ev == EV_DEPLIM else _dense(qd, C3, q, y[3], hs, th)
+                ynew0 = _dense(qd, C0, ql, y[0], hs, th)
+                ynew1 = _dense(qd, C1, ql, y[1], hs, th)
+                ynew2 = _dense(qd, C2, ql, y[2], hs, th)
+                ydep = d * lim_dep if ev == EV_DEPLIM else _dense(qd, C3, ql, y[3], hs, th)
                 y[0], y[1], y[2], y[3] = ynew0, ynew1, ynew2, ydep
                 if ev == EV_FACE or ev == EV_BOUNDARY:
                     y[ev_axis] = ev_face
                 tau = tau + th * hs
                 hit_lim = False
+                hit_goal = False
                 if ev == EV_FACE:
                     # through the face (whatever the velocity there says); start afresh in the new cell
                     res = _through_face(ev_axis, ev_face == cf[3 + ev_axis], y, param, gx, gy, gz,
@@ -1253,7 +1350,7 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                 sf[l, S_TAU] = tau
                 for a in range(3):
                     sf[l, S_Y + a] = y[a]
-                if not _emit_pending(l, slot, sf, si, d, param, q, spacing, phase,
+                if not _emit_pending(l, slot, sf, si, d, param, ql, spacing, phase,
                                      out_p, out_par, out_n, B):
                     if reason >= 0:
                         si[l, I_FINAL] = 1
@@ -1264,6 +1361,16 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                     break
             if reason >= 0:
                 break
+            if hit_goal:
+                suspended = True
+                break
+            if ros is not None and to_ros:  # on with the Rosenbrock stepper, cell-aware
+                rosl = True
+                si[l, I_ROS] = 1
+                fsl, ql, expo1l, betal, awl, adl, crossl = ns, DENSE_DEGREE, expo1_ros, 0.0, True, True, False
+                if not aware:  # (plain: the cached cell is the last stage's, not the point's)
+                    _relocate(gx, gy, gz, period, inv, vec, bk, y[0], y[1], y[2], ci, cf, coef)
+                    _fc(y[0], y[1], y[2], param, cf, coef, k, C0)
 
         if ci[3] >= 0:  # back to where the step started, to wait for the brick
             for a in range(4):
@@ -1284,22 +1391,28 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
             _emit_pending(l, slot, sf, si, d, param, q, spacing, phase, out_p, out_par, out_n, B)
 
 
-def _scratch(n_rows):
-    """The step loop's scratch arrays (one line's worth, reused by the next line of a range)."""
+def _scratch(n_rows, ns):
+    """The step loop's scratch arrays (one line's worth, reused by the next line of a range);
+    ``ns``: the Rosenbrock stepper's stages."""
     return (np.empty((n_rows, 4)),  # k: the stages, and a spare row
             np.empty((8, 3)), np.empty(9), np.empty(4, np.int64),  # the cached cell: polynomial,
-            np.empty(4), np.empty(3), np.empty(3), np.empty(3),  # faces, index (and a missing
-            # brick); y, yt, ys, y1
+            np.empty(4), np.empty(3), np.empty(3), np.empty(4),  # faces, index (and a missing
+            # brick); y, yt, ys, y1 (the Rosenbrock step's with its dependent parameter)
             np.empty(3), np.empty(3),  # domain bounds
             np.empty((4, QMAX)),  # dense coefficients
             np.empty((8, 3)), np.empty(9), np.empty(3, np.int64),  # a crossing step's start cell
             # a step's start on a bricked field: point and k0, cell
-            np.empty(8), np.empty((8, 3)), np.empty(9), np.empty(3, np.int64))
+            np.empty(8), np.empty((8, 3)), np.empty(9), np.empty(3, np.int64),
+            # the Rosenbrock step's: stage increments, J, W, W^-1, ∇|u|, u, right-hand side
+            np.empty((ns, 4)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty(3),
+            np.empty(3), np.empty(4))
 
 
 def _advance_range(start, stop, *args):
     """``_advance_lines`` with scratch arrays of its own (one set per range)."""
-    _advance_lines(start, stop, *args, *_scratch(int(args[18][M_STAGES]) + 1))
+    ros = args[-1]
+    ns = 1 if ros is None else ros.shape[0] - 1
+    _advance_lines(start, stop, *args, *_scratch(max(int(args[18][M_STAGES]), ns) + 1, ns))
 
 
 def advance(launch):
@@ -1315,7 +1428,22 @@ def advance(launch):
 
     parallel_compile.start("flowkit.integrate.kernel._advance_lines", _advance_lines,
                            str(launch.field.vec.dtype))
-    run_ranges(_advance_range, launch.active.size, *launch.arrays())
+    run_ranges(_advance_range, launch.active.size, *launch.arrays(), None, NO_TIMES, launch.stiff)
+
+
+_VB = _advance_lines.py_func.__code__.co_varnames.index("vb")
+_ROS = _advance_lines.py_func.__code__.co_varnames.index("ros")
+
+
+def _variant(args) -> str:
+    """The step loop's variant from its argument types: the compile notices' name for it."""
+    from numba.core import types
+
+    return (":pathlines" if args[_VB] != types.none else
+            ":rosenbrock" if args[_ROS] != types.none else "")
+
+
+compile_notice.VARIANTS["flowkit.integrate.kernel._advance_lines"] = _variant
 
 
 @njit(cache=True)

@@ -742,7 +742,8 @@ def advance(launch) -> str:
     not a compiled one: a compiled dispatcher would compile the lock-step (a third of the
     kernels' compile time) for every trace, where only plain (not cell-aware) traces run it."""
     L, f, m, io = launch, launch.field, launch.method, launch.io
-    why = why_not(f.period, f.inv, m.info, io) or ("a bricked field" if f.bk.size else "")
+    why = (why_not(f.period, f.inv, m.info, io) or ("a bricked field" if f.bk.size else "")
+           or ("the Rosenbrock stepper" if L.stiff is not None else ""))
     if not why and not _lockstep_ready(lockstep_args(L)):
         why = COMPILING
     if not why:

@@ -74,6 +74,8 @@ class Launch:
     out_p: np.ndarray  # (n_active, B, 3) vertices written this pass
     out_par: np.ndarray  # (n_active, B, 2 + columns) time, arc length (and a backend's own)
     out_n: np.ndarray  # (n_active,) int64: vertices written this pass
+    stiff: np.ndarray | None = None  # the Rosenbrock stepper's table (rosenbrock.table) for
+    # lines that step with it (io[P_ROS], si[:, I_ROS]); numba only
 
     def arrays(self) -> tuple:
         """Every array, in the order the numba kernels take them."""

@@ -5,10 +5,10 @@ An entry is one of three kinds, each with its capabilities (``backends``, ``adap
 
 * ``Method``: an explicit Runge–Kutta tableau.  The numba kernel reads its ``kernel_arrays()``
   and the OpenCL code generator unrolls the same arrays, so a user's tableau runs on both.
-* ``RosenbrockMethod``: a linearly implicit method's coefficients (α, Γ, b, b̂) and the driver
-  that steps it (named ``module:function`` and imported on first use).
-* ``StiffSwitch``: an explicit method whose lines its stiffness test flags are traced again with
-  a Rosenbrock method (``auto``).
+* ``RosenbrockMethod``: a linearly implicit method's coefficients (α, Γ, b, b̂), which the
+  step loop's Rosenbrock stepper runs (``rosenbrock.py``).
+* ``StiffSwitch``: an explicit method whose lines go on with a Rosenbrock method from the step
+  its stiffness test flags them (``auto``).
 
 ``register_method`` validates an entry with its ``check()`` (consistency and order conditions,
 the errors name the coefficient or the condition) and makes it known by name to ``flowkit.trace``,
@@ -40,7 +40,6 @@ A tableau (``Method``) holds what the kernels need to run it without special cas
 from __future__ import annotations
 
 import importlib.util
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -88,8 +87,7 @@ class Method:
 
     kind = "explicit"
     resamples = True  # dense output: vertices at any spacing or count
-    driver = None  # the kernel's passes (trace.Setup.run)
-    retrace = None
+    switch_to = None
 
     @classmethod
     def from_butcher(cls, name, c, a, b, b_hat=None, *, order, err_order=None, p=None,
@@ -273,7 +271,6 @@ class RosenbrockMethod:
     bhat: np.ndarray
     description: str = ""
     aliases: tuple[str, ...] = field(default=())
-    driver: str | Callable = "flowkit.integrate.rosenbrock:run_tasks"
 
     kind = "rosenbrock"
     backends = ("numba",)
@@ -282,14 +279,7 @@ class RosenbrockMethod:
     resamples = False  # vertices at its accepted steps
     stiffness_stage = None
     explicit = None
-    retrace = None
-
-    def load_driver(self) -> Callable:
-        """driver(method, setup, seeds, dirs, max_steps) -> (points, t, s, owner, columns)."""
-        if callable(self.driver):
-            return self.driver
-        module, _, attr = self.driver.partition(":")
-        return getattr(importlib.import_module(module), attr)
+    switch_to = None
 
     def check(self, tol: float = 1e-12) -> None:
         """Raise MethodError unless the coefficients can run: shapes, strictly lower α and Γ,
@@ -318,15 +308,13 @@ class RosenbrockMethod:
         G = self.gammas + self.gamma * np.eye(s)
         _conditions(name, "b", oc.ros_failures(self.alpha, G, self.b, self.order, 1e-10))
         _conditions(name, "bhat", oc.ros_failures(self.alpha, G, self.bhat, self.err_order, 1e-10))
-        if not (callable(self.driver) or ":" in str(self.driver)):
-            raise MethodError(f"method {name}: driver {self.driver!r} must be a callable or "
-                              "'module:function'")
 
 
 @dataclass(frozen=True, eq=False)
 class StiffSwitch:
-    """Trace with the explicit method ``first``; the lines its stiffness test flags are traced
-    again from their seeds with ``stiff`` (line_data column named after it marks them)."""
+    """Trace with the explicit method ``first``; a line its stiffness test flags goes on with
+    the Rosenbrock method ``stiff`` from that step (a line_data flag named after it marks
+    those lines)."""
 
     name: str
     first: str
@@ -336,8 +324,7 @@ class StiffSwitch:
 
     kind = "switch"
     adaptive = True
-    resamples = False  # the retraced lines have vertices at their steps
-    driver = None
+    resamples = False  # the lines that switch have vertices at their steps
 
     @property
     def explicit(self) -> Method:
@@ -348,7 +335,7 @@ class StiffSwitch:
         return self.explicit.lockstep  # its first pass is the explicit method's
 
     @property
-    def retrace(self):
+    def switch_to(self):
         return get_method(self.stiff)
 
     @property
@@ -357,7 +344,8 @@ class StiffSwitch:
 
     @property
     def backends(self) -> tuple[str, ...]:
-        return self.explicit.backends
+        # (a line switches inside the step loop: both steppers on one backend)
+        return tuple(b for b in self.explicit.backends if b in self.switch_to.backends)
 
     def check(self, tol: float = 1e-12) -> None:
         _common(self, "switch")
@@ -365,9 +353,9 @@ class StiffSwitch:
         if first.kind != "explicit" or first.stiffness_stage is None:
             raise MethodError(f"method {self.name}: first = {self.first!r} must be an explicit "
                               "method with a stiffness_stage (one that flags stiff lines)")
-        if get_method(self.stiff).driver is None:
-            raise MethodError(f"method {self.name}: stiff = {self.stiff!r} must be a method with "
-                              "its own driver (a Rosenbrock method)")
+        if get_method(self.stiff).kind != "rosenbrock":
+            raise MethodError(f"method {self.name}: stiff = {self.stiff!r} must be a Rosenbrock "
+                              "method")
 
 
 def _common(m, kind: str) -> None:

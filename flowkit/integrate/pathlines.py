@@ -28,323 +28,35 @@ to spare).  The ``time`` attribute is the physical time of each vertex (always s
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 
 from ..fields import Field
-from ..fields.interp import locate_axis, trilinear_vector
-from ..jit import inline, kernel
+from ..fields.bricks import NO_BRICKS
 from ..lines import Lines
 from ..threads import run_ranges
 from . import attributes as _attributes
-from .kernel import (
-    ERRP_MIN,
-    EXPO1_BETA,
-    _dense,
-    _initial_guess,
-    _initial_step,
-    _load_state,
-    _next_step,
-    _retry,
-    _root,
-    _save_state,
-    _stage_point,
-    _step_end,
-)
+from . import kernel as K
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES, Reason
-from .schema import (
-    DONE,
-    I_NACC,
-    I_NREJ,
-    I_REASON,
-    I_STATUS,
-    M_ADAPTIVE,
-    M_FSAL,
-    M_HASE2,
-    M_KEXP,
-    M_NERR,
-    M_STAGES,
-    NEW,
-    O_ATOL,
-    O_BETA,
-    O_FACMAX,
-    O_FACMIN,
-    O_H0,
-    O_HMAX,
-    O_HMIN,
-    O_MAXLEN,
-    O_MAXTIME,
-    O_RTOL,
-    O_SAFETY,
-    O_STAG,
-    P_MAXSTEPS,
-    PATH_FLOAT_OPTIONS,
-    PATH_FLOAT_STATE,
-    PATH_INT_OPTIONS,
-    PATH_INT_STATE,
-    RUNNING,
-    S_TAU,
-)
 from .trace import typical_speed
-
-# the rows of a pathline (schema.py): the streamline kernel's leading columns, read and written
-# by kernel._load_state / _save_state (time is the parameter, arc length the dependent one), and
-# a last-rejection flag of its own; options up to O_STAG; io holds only P_MAXSTEPS
-NF, NI = PATH_FLOAT_STATE.size, PATH_INT_STATE.size
-NFO, NIO = PATH_FLOAT_OPTIONS.size, PATH_INT_OPTIONS.size
-I_LASTREJ = PATH_INT_STATE["I_LASTREJ"]
 
 POINT_ATTRIBUTES = ("time", "arc_length", "speed", "velocity", "vorticity", "vorticity_magnitude",
                     "distance_to_seed")
 BUFFER_VERTICES = 1 << 22  # vertices held by one kernel launch (all lines together)
-
-R_OUT, R_MAXLEN, R_MAXTIME = int(Reason.OUT_OF_DOMAIN), int(Reason.MAX_LENGTH), int(Reason.MAX_TIME)
-R_MAXSTEPS, R_STAG = int(Reason.MAX_STEPS), int(Reason.STAGNATION)
 R_SEED, R_LEFT = int(Reason.SEED_OUTSIDE), int(Reason.LEFT_TIME_RANGE)
 
 
-# -- the kernel -------------------------------------------------------------------------------
-@inline
-def _axis(c, period, inv, x):
-    """Cell and local coordinate of x on one axis; beyond a bounded end the end cell's
-    polynomial is extended (local coordinate outside [0, 1]) so stages just outside stay smooth."""
-    n = c.size
-    # one inlined locate_axis, not one per branch (each copy costs compilation); period is
-    # 0.0 on a bounded axis
-    xc = x if period > 0.0 else min(max(x, c[0]), c[n - 1])
-    i, t = locate_axis(c, period, inv, xc)
-    if xc != x:
-        t = (x - c[i]) / (c[i + 1] - c[i])
-    return i, t
-
-
-@kernel()
-def _velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k, row):
-    """(1 - a) v0 + a v1 at (x, y, z) into k[row, 0:3] and the speed into k[row, 3];
-    returns False for NaN data or a NaN position."""
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        return False
-    i, tx = _axis(gx, period[0], inv[0], x)
-    j, ty = _axis(gy, period[1], inv[1], y)
-    m, tz = _axis(gz, period[2], inv[2], z)
-    a = (t - t0) / (t1 - t0)
-    u0, w0, s0, bad0 = trilinear_vector(v0, i, j, m, tx, ty, tz)
-    u1, w1, s1, bad1 = trilinear_vector(v1, i, j, m, tx, ty, tz)
-    if bad0 or bad1:
-        return False
-    u = (1.0 - a) * u0 + a * u1
-    v = (1.0 - a) * w0 + a * w1
-    w = (1.0 - a) * s0 + a * s1
-    k[row, 0] = u
-    k[row, 1] = v
-    k[row, 2] = w
-    k[row, 3] = math.sqrt(u * u + v * v + w * w)
-    return True
-
-
-# One function with the loop over the lines inside: a line function called from a range
-# function was compiled, and optimised again inside its caller, twice (seconds on a fresh
-# machine).  Without NRT (no reference counting in the step loop, as kernel._advance_lines; nothing
-# allocated here: the scratch arrays come from _range) and without the GIL, so that threads run
-# ranges side by side (threads.run_ranges).
-@kernel(nogil=True)
-def _lines(start, stop, active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
-           mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n, k, Q, yt, y,
-           y1):
-    """``_advance`` for the slots start..stop-1 (lines ``active[start:stop]``), one after the
-    other.  Scratch of one line, reused by the next: k (the stages' velocity and speed), Q (the
-    dense output's coefficients), yt (a stage point), y and y1 (position and arc length at the
-    step's start and end)."""
-    B = out_p.shape[1]
-    S, n_err, fs, kexp = mi[M_STAGES], mi[M_NERR], mi[M_FSAL], mi[M_KEXP]
-    adaptive, has_e2 = mi[M_ADAPTIVE] != 0, mi[M_HASE2] != 0
-    q = mp.shape[1]
-    safety, facmin, facmax, beta = fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX], fo[O_BETA]
-    hmin, hmax, stag, maxlen = fo[O_HMIN], fo[O_HMAX], fo[O_STAG], fo[O_MAXLEN]
-    max_steps = io[P_MAXSTEPS]
-    expo1 = 1.0 / kexp - EXPO1_BETA * beta
-    for slot in range(start, stop):
-        l = active[slot]
-        out_n[slot] = 0
-        tlim = release[l] + d * fo[O_MAXTIME]
-
-        if si[l, I_STATUS] == NEW:
-            px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
-            inside = True
-            for a in range(3):
-                c = gx if a == 0 else (gy if a == 1 else gz)
-                if period[a] == 0.0 and not (c[0] <= seeds[l, a] <= c[c.size - 1]):
-                    inside = False
-            t = release[l]
-            # constants to the compiled (not inlined) helpers typed: a literal 0 compiles one more
-            # copy of the helper per value (as in kernel.py)
-            if not (inside and _velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, t0, t1, k,
-                                         np.int64(0))):
-                si[l, I_STATUS] = DONE
-                si[l, I_REASON] = R_SEED
-                continue
-            y[0], y[1], y[2], y[3] = px, py, pz, 0.0
-            n_acc = 0
-            n_rej = 0
-            last_rej = False
-            errp = ERRP_MIN
-            errpb = errp ** beta
-            h = fo[O_H0]
-            if h <= 0.0:
-                h0, d1 = _initial_guess(fo, y, k)
-                h0 = min(h0, hmax, max(abs(goal - t), 1e-300))
-                for a in range(3):
-                    yt[a] = y[a] + d * h0 * k[0, a]
-                ok = _velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv,
-                               v0, v1, t0, t1, k, np.int64(1))
-                h = _initial_step(fo, y, k, h0, d1, kexp, ok)
-            h = d * min(h, hmax)
-            si[l, I_STATUS] = RUNNING
-            out_p[slot, 0, 0], out_p[slot, 0, 1], out_p[slot, 0, 2] = px, py, pz
-            out_t[slot, 0] = t
-            out_s[slot, 0] = 0.0
-            out_n[slot] = 1
-        else:
-            t, h, errp, errpb, n_acc, n_rej, last_rej = _load_state(sf, si, l, y, k, np.int64(I_LASTREJ), beta)
-
-        reason = -1
-        while out_n[slot] < B and t != goal:
-            if n_acc + n_rej >= max_steps:
-                reason = R_MAXSTEPS
-                break
-            if stag > 0.0 and not (k[0, 3] >= stag):
-                reason = R_STAG
-                break
-            out = False  # standing on a bounded end and moving outwards
-            for a in range(3):
-                c = gx if a == 0 else (gy if a == 1 else gz)
-                mv = d * k[0, a]
-                if period[a] == 0.0 and ((y[a] <= c[0] and mv < 0.0) or (y[a] >= c[c.size - 1] and mv > 0.0)):
-                    out = True
-            if out:
-                reason = R_OUT
-                break
-            # step size: the controller's, clipped to the interval end or the time limit
-            hs = h
-            rem_goal = d * (goal - t)
-            rem_lim = d * (tlim - t)
-            rem = min(rem_goal, rem_lim)
-            hit = abs(hs) >= rem
-            if hit:
-                hs = d * rem
-            for st in range(1, n_err):
-                _stage_point(ma, k, st, y, hs, yt)
-                if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
-                                 v0, v1, t0, t1, k, st):
-                    k[st, 0] = np.nan
-            y1[3], err, finite = _step_end(y, k, hs, mb, me, me2, n_err, adaptive, has_e2, fo, y1)
-            if finite and err <= 1.0:  # stages up to f(y1) and those only the dense output uses
-                for st in range(n_err, S):
-                    _stage_point(ma, k, st, y, hs, yt)
-                    if not _velocity(yt[0], yt[1], yt[2], t + mc[st] * hs, gx, gy, gz, period, inv,
-                                     v0, v1, t0, t1, k, st):
-                        finite = False
-            if not (finite and err <= 1.0):  # NaN data met by a stage, or an error too large
-                n_rej += 1
-                last_rej = True
-                h, reason = _retry(hs, err, not finite or not err > 1.0, hmin, safety, facmin, expo1)
-                if reason >= 0:
-                    break
-                continue
-            # accepted
-            hnext, errp, errpb = _next_step(err, errp, errpb, hs, h, last_rej, safety, facmin, facmax,
-                                            beta, expo1)
-            hnext = d * min(abs(hnext), hmax)
-            last_rej = False
-            n_acc += 1
-            # events on the dense output: a bounded end of the domain, the arc-length limit
-            for a in range(4):
-                for j in range(q):
-                    acc = 0.0
-                    for m in range(S):
-                        acc += mp[m, j] * k[m, a]
-                    Q[a, j] = acc
-            th = 1.0
-            ev_axis = -1
-            ev_face = 0.0
-            for a in range(3):
-                c = gx if a == 0 else (gy if a == 1 else gz)
-                if period[a] != 0.0:
-                    continue
-                if y1[a] < c[0]:
-                    tha = _root(Q, a, q, y[a], hs, c[0], -1.0, 1.0)
-                    face = c[0]
-                elif y1[a] > c[c.size - 1]:
-                    tha = _root(Q, a, q, y[a], hs, c[c.size - 1], 1.0, 1.0)
-                    face = c[c.size - 1]
-                else:
-                    continue
-                if tha <= th:
-                    th = tha
-                    ev_axis = a
-                    ev_face = face
-            ev_len = False
-            if y1[3] >= maxlen:
-                thl = _root(Q, np.int64(3), q, y[3], hs, maxlen, 1.0, 1.0)
-                if thl < th or ev_axis < 0:
-                    th = thl
-                    ev_len = True
-                    ev_axis = -1
-            if ev_axis >= 0 or ev_len:
-                for a in range(4):
-                    y[a] = _dense(Q, a, q, y[a], hs, th)
-                if ev_len:
-                    y[3] = maxlen
-                    reason = R_MAXLEN
-                else:
-                    y[ev_axis] = ev_face
-                    reason = R_OUT
-                t = t + th * hs
-            else:
-                for a in range(4):
-                    y[a] = y1[a]
-                    k[0, a] = k[fs, a]
-                if hit:
-                    if rem_lim <= rem_goal:
-                        t = tlim
-                        reason = R_MAXTIME
-                    else:
-                        t = goal
-                else:
-                    t = t + hs
-            h = hnext
-            n = out_n[slot]
-            out_p[slot, n, 0], out_p[slot, n, 1], out_p[slot, n, 2] = y[0], y[1], y[2]
-            out_t[slot, n] = t
-            out_s[slot, n] = y[3]
-            out_n[slot] = n + 1
-            if reason >= 0:
-                break
-
-        _save_state(sf, si, l, y, k, t, h, errp, n_acc, n_rej, last_rej, np.int64(I_LASTREJ))
-        if reason >= 0:
-            si[l, I_STATUS] = DONE
-            si[l, I_REASON] = reason
-
-
-def _range(start, stop, *args):
-    """``_lines`` with scratch arrays of its own (one set per range)."""
-    mp, mi = args[19], args[20]
-    _lines(start, stop, *args, np.empty((mi[M_STAGES], 4)), np.empty((4, mp.shape[1])),
-           np.empty(3), np.empty(4), np.empty(4))
-
-
-def _advance(active, seeds, release, d, goal, gx, gy, gz, period, inv, v0, v1, t0, t1,
-             mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s, out_n):
+def _advance(active, seeds, dirs, release, goal, grid, v0, v1, t0, t1, method, fo, io, sf,
+             si, out_p, out_par, out_n):
     """Advance the lines ``active`` to ``goal`` (or their end) inside one snapshot interval, or
-    until each has written B vertices; the lines go to numba's thread count of Python threads
-    (``threads.run_ranges``): a prange loop around the kernel cost seconds more to compile."""
-    run_ranges(_range, active.size, active, seeds, release, d, goal, gx, gy, gz, period,
-               inv, v0, v1, t0, t1, mc, ma, mb, me, me2, mp, mi, fo, io, sf, si, out_p, out_t, out_s,
-               out_n)
+    until each has written B vertices: the streamline step loop with the field between two
+    snapshots (``kernel._advance_lines``' ``path``), the lines shared among numba's threads."""
+    none = np.zeros(seeds.shape[0])
+    run_ranges(K._advance_range, active.size, active, seeds, dirs, none, none, *grid, v0,
+               NO_BRICKS, *method, fo, io, sf, si, out_p, out_par, out_n, v1,
+               np.concatenate([[t0, t1, goal], release]), None)
 
 
 # -- the driver -------------------------------------------------------------------------------
@@ -376,11 +88,12 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
     if not np.all(np.isfinite(release)):
         raise ValueError("release times must be finite")
     order = range(len(times) - 1) if d > 0 else range(len(times) - 2, -1, -1)
-    sf = np.zeros((n, NF))
-    si = np.zeros((n, NI), np.int64)
+    dirs = np.full(n, d)
+    sf = np.zeros((n, K.NF))
+    si = np.zeros((n, K.NI), np.int64)
     chunks = []  # (owner, points, time, arc length, attributes) per launch
     method = opts.method_obj
-    mc, ma, mb, me, me2, mp, mi = method.kernel_arrays()
+    arrays = method.kernel_arrays()
     held: dict[int, Field] = {}
     setup = fa = fb = None
     for k in order:
@@ -396,30 +109,31 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
         setup.check_grid(fb)
         ta, tb = times[k], times[k + 1]
         goal = tb if d > 0 else ta
-        status = si[:, I_STATUS]
+        status = si[:, K.I_STATUS]
         if d > 0:
             starts = (release >= ta) & ((release < tb) | ((release == tb) & (k == len(times) - 2)))
         else:
             starts = (release <= tb) & ((release > ta) | ((release == ta) & (k == 0)))
-        active = np.flatnonzero((status == RUNNING) | ((status == NEW) & starts))
+        active = np.flatnonzero((status == K.RUNNING) | ((status == K.NEW) & starts))
+        v0, v1 = _alike(fa.vector, fb.vector)
         while active.size:
             B = int(min(4096, max(16, BUFFER_VERTICES // active.size)))
             out_p = np.empty((active.size, B, 3))
-            out_t = np.empty((active.size, B))
-            out_s = np.empty((active.size, B))
+            out_par = np.empty((active.size, B, 2))
             out_n = np.zeros(active.size, np.int64)
-            _advance(active, seeds, release, d, goal, *setup.grid, fa.vector, fb.vector, ta, tb,
-                     mc, ma, mb, me, me2, mp, mi, setup.fo, setup.io, sf, si, out_p, out_t, out_s, out_n)
+            _advance(active, seeds, dirs, release, goal, setup.grid, v0, v1, ta, tb, arrays,
+                     setup.fo, setup.io, sf, si, out_p, out_par, out_n)
             keep = np.arange(B)[None, :] < out_n[:, None]
             owner = np.repeat(active, out_n)
-            pts, tv = out_p[keep], out_t[keep]
-            chunks.append((owner, pts, tv, out_s[keep],
+            pts, tv = out_p[keep], out_par[:, :, 0][keep]
+            chunks.append((owner, pts, tv, out_par[:, :, 1][keep],
                            _sampled(opts.attributes, fa, fb, ta, tb, pts, tv)))
-            busy = (si[active, I_STATUS] == RUNNING) & (sf[active, S_TAU] != goal)
+            busy = (si[active, K.I_STATUS] == K.RUNNING) & (sf[active, K.S_TAU] != goal)
             active = active[busy]
-    still = si[:, I_STATUS]
-    si[still == RUNNING, I_REASON] = R_LEFT
-    si[still == NEW, I_REASON] = R_SEED  # released outside the time range
+        v0 = v1 = None
+    still = si[:, K.I_STATUS]
+    si[still == K.RUNNING, K.I_REASON] = R_LEFT
+    si[still == K.NEW, K.I_REASON] = R_SEED  # released outside the time range
     return _assemble(chunks, n, seeds, release, si, opts, times, sources, fa)
 
 
@@ -453,6 +167,13 @@ def _series(series) -> tuple[np.ndarray, list]:
     return times, [src for _, src in entries]
 
 
+def _alike(v0, v1):
+    """The two snapshots' node arrays in one type (float64 where they differ: exact)."""
+    if v0.dtype == v1.dtype:
+        return v0, v1
+    return v0.astype(np.float64), v1.astype(np.float64)
+
+
 def _load(src, vector, load) -> Field:
     if isinstance(src, Field):
         return src
@@ -476,20 +197,25 @@ class _Setup:
         ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
         vtyp = typical_speed(f)  # sampled: the full median costs 3x a float32 field's memory
         cross = g.min_cell_size / (vtyp if vtyp > 0 else 1.0)
-        fo = np.zeros(NFO)
-        fo[O_RTOL:O_RTOL + 3] = opts.rtol
-        fo[O_ATOL:O_ATOL + 3] = opts.rtol * ext if opts.atol is None else opts.atol
-        fo[O_SAFETY], fo[O_FACMIN], fo[O_FACMAX] = opts.safety, opts.min_factor, opts.max_factor
-        fo[O_BETA] = opts.beta
-        fo[O_H0] = opts.step or 0.0
-        fo[O_HMIN] = opts.min_step if opts.min_step is not None else 1e-10 * cross
-        fo[O_HMAX] = opts.max_step if opts.max_step is not None else np.inf
-        fo[O_MAXLEN], fo[O_MAXTIME] = opts.max_length, opts.max_time
+        fo = np.zeros(K.NFO)
+        fo[K.O_RTOL:K.O_RTOL + 3] = opts.rtol
+        fo[K.O_ATOL:K.O_ATOL + 3] = opts.rtol * ext if opts.atol is None else opts.atol
+        fo[K.O_SAFETY], fo[K.O_FACMIN], fo[K.O_FACMAX] = (opts.safety, opts.min_factor,
+                                                          opts.max_factor)
+        fo[K.O_BETA] = opts.beta
+        fo[K.O_H0] = opts.step or 0.0
+        fo[K.O_HMIN] = opts.min_step if opts.min_step is not None else 1e-10 * cross
+        fo[K.O_HMAX] = opts.max_step if opts.max_step is not None else np.inf
+        fo[K.O_MAXLEN], fo[K.O_MAXTIME] = opts.max_length, opts.max_time
         # a particle at rest may move later: no stagnation stop unless asked for explicitly
-        fo[O_STAG] = opts.stagnation if opts.stagnation is not None else 0.0
+        fo[K.O_STAG] = opts.stagnation if opts.stagnation is not None else 0.0
         self.fo = fo
-        io = np.zeros(NIO, np.int64)
-        io[P_MAXSTEPS] = opts.max_steps
+        # plain stepping (each stage in its own cell), vertices at the accepted steps, time the
+        # parameter, no stiffness test
+        io = np.zeros(K.NIO, np.int64)
+        io[K.P_MAXSTEPS] = opts.max_steps
+        io[K.P_PARAM], io[K.P_AWARE], io[K.P_EMIT] = 0, 0, K.EMIT_STEPS
+        io[K.P_PASS], io[K.P_STIFF] = K.PASS_FULL, -1
         self.io = io
 
     def check_grid(self, f: Field):
@@ -546,8 +272,9 @@ def _assemble(chunks, n, seeds, release, si, opts, times, sources, field=None) -
         elif name != "time":
             pd[name] = sampled[name]
     offsets = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=n))])
-    ld = {"seed_id": np.arange(n, dtype=np.int64), "reason": si[:, I_REASON].astype(np.int8),
-          "n_accepted": si[:, I_NACC].astype(np.int32), "n_rejected": si[:, I_NREJ].astype(np.int32),
+    ld = {"seed_id": np.arange(n, dtype=np.int64), "reason": si[:, K.I_REASON].astype(np.int8),
+          "n_accepted": si[:, K.I_NACC].astype(np.int32),
+          "n_rejected": si[:, K.I_NREJ].astype(np.int32),
           "release_time": release.copy()}
     attrs = {"kind": "pathlines", "method": opts.method_name, "rtol": str(opts.rtol),
              "atol": str(opts.atol), "parameter": "time", "direction": opts.direction,

@@ -12,8 +12,6 @@ same names as ``#define`` lines (``c_defines``), so neither the numba kernels no
 address a column by number.
 
 A column ``w`` wide holds components ``C .. C + w - 1`` (``sf[l, S_Y + 2]`` is the position's z).
-Pathlines and Rosenbrock lines keep shorter rows: the streamline kernel's leading columns, read
-and written by the kernel's own state helpers, then columns of their own (``Layout.head``).
 Codes name the values some columns hold (a line's status, a launch's pass, the emit mode).
 """
 
@@ -45,12 +43,6 @@ class Layout:
 
     def __getitem__(self, name: str) -> int:
         return self.offsets[name]
-
-    def head(self, last: str, *more: Column) -> Layout:
-        """This layout's columns up to ``last`` (same offsets), then ``more`` (a row of its own:
-        its constants are not exported, and a name in ``more`` may sit elsewhere than here)."""
-        keep = self.columns[:[c.name for c in self.columns].index(last) + 1]
-        return Layout(self.array, self.size_name, keep + more)
 
     def constants(self) -> dict[str, int]:
         return {**self.offsets, self.size_name: self.size}
@@ -91,6 +83,8 @@ INT_STATE = Layout("si", "NI", (
     Column("I_KFAIL", 1, "failed crossing tries in a row"),
     Column("I_KWAIT", 1, "faces to wait before the next crossing try"),
     Column("I_WAIT", 1, "bricked field: 1 + the brick the line waits for, 0 none"),
+    Column("I_ROS", 1, "1 while the line steps with the Rosenbrock stepper (kernel's ros)"),
+    Column("I_NSTIFF", 1, "Rosenbrock steps with h ρ(J) > stiffness.HLAMBDA_STIFF"),
 ))
 FLOAT_OPTIONS = Layout("fo", "NFO", (
     Column("O_RTOL", 3, "relative tolerance per axis"),
@@ -116,6 +110,8 @@ INT_OPTIONS = Layout("io", "NIO", (
     # a flag in io, not an argument, so that the kernel's line function is compiled once
     Column("P_PASS", 1, "what a launch does: PASS_FULL, PASS_SETUP or PASS_FINISH (lanes.py)"),
     Column("P_CROSS", 1, "1: adaptive cell-aware steps may cross faces"),
+    Column("P_ROS", 1, "with the Rosenbrock stepper: 1 lines start with it; 0 they switch to it "
+                       "at the step the stiffness test flags them"),
 ))
 METHOD_INFO = Layout("mi", "NMI", (
     Column("M_STAGES", 1, "stages, the f(y1) stage and the dense-output ones included"),
@@ -134,16 +130,6 @@ CODES = {
     "P_EMIT": ("EMIT_STEPS", "EMIT_SPACING", "EMIT_FINAL"),
     "step event": ("EV_NONE", "EV_FACE", "EV_BOUNDARY", "EV_DEPLIM"),
 }
-
-# rows of the other integrators: the kernel's leading columns (kernel._load_state/_save_state)
-# and their own
-PATH_FLOAT_STATE = FLOAT_STATE.head("S_K0")
-PATH_INT_STATE = INT_STATE.head("I_NREJ", Column("I_LASTREJ", 1, "1 when the last step was rejected"))
-PATH_FLOAT_OPTIONS = FLOAT_OPTIONS.head("O_STAG")
-PATH_INT_OPTIONS = INT_OPTIONS.head("P_MAXSTEPS")
-ROS_INT_STATE = INT_STATE.head("I_NREJ", Column("I_STIFF", 1, "stiffness.stiff_update state"),
-                               Column("I_NSTIFF", 1, "accepted steps with h ρ(J) > HLAMBDA_STIFF"))
-
 
 def _constants() -> dict[str, int]:
     out = {"QMAX": QMAX}
@@ -178,7 +164,7 @@ S_Q = 25
 S_HK = 57
 S_ANCHOR = 58
 # si: NI columns
-NI = 16
+NI = 18
 I_STATUS = 0
 I_REASON = 1
 I_NACC = 2
@@ -193,6 +179,8 @@ I_NCROSS = 12
 I_KFAIL = 13
 I_KWAIT = 14
 I_WAIT = 15
+I_ROS = 16
+I_NSTIFF = 17
 # fo: NFO columns
 NFO = 17
 O_RTOL = 0
@@ -209,7 +197,7 @@ O_MAXTIME = 14
 O_STAG = 15
 O_CELLFAC = 16
 # io: NIO columns
-NIO = 7
+NIO = 8
 P_MAXSTEPS = 0
 P_PARAM = 1
 P_AWARE = 2
@@ -217,6 +205,7 @@ P_EMIT = 3
 P_STIFF = 4
 P_PASS = 5
 P_CROSS = 6
+P_ROS = 7
 # mi: NMI columns
 NMI = 6
 M_STAGES = 0

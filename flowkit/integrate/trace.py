@@ -22,9 +22,9 @@ from ..fields.stored import FieldMemoryError, fmt_bytes
 from ..lines import Lines
 from . import attributes as _attributes
 from . import kernel as K
-from . import lanes
+from . import lanes, rosenbrock
 from .launch import FieldArrays, Launch, MethodArrays
-from .methods import names
+from .methods import get_method
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES
 from .rounds import Rounds
@@ -266,7 +266,12 @@ class Setup:
         entry = opts.entry
         _check_backend(entry, backend)
         g = field.grid
-        m = entry.explicit  # the tableau the kernel runs first; None: the entry's own driver
+        # the stepper lines start with: an explicit tableau, or (a Rosenbrock entry) the
+        # Rosenbrock stepper, whose loop takes a tableau too: the default's, unused, so that
+        # ros34pw2 and auto share one compiled variant
+        ros = entry if entry.kind == "rosenbrock" else entry.switch_to
+        self.stiff = None if ros is None else rosenbrock.table(ros)
+        m = entry.explicit if entry.explicit is not None else get_method(TraceOptions.method)
         self.method = m
         self.grid = g.kernel_args()
         self.bricks = brick_pool(field, opts, backend) if pool is None else pool
@@ -278,8 +283,7 @@ class Setup:
         else:  # (read brick by brick: the explicit kernel only, brick_pool checked)
             self.vec = None
             fa = FieldArrays(*self.grid, self.bricks.pool, self.bricks.bk)
-        # (no tableau: the entry's own driver takes the field and options from here)
-        self.arrays = fa, None if m is None else MethodArrays.of(m)
+        self.arrays = fa, MethodArrays.of(m)
         ext = float(np.max(g.bounds[:, 1] - g.bounds[:, 0]))
         cell = g.min_cell_size
         vtyp = typical_speed(field) if speed is None else speed
@@ -308,8 +312,10 @@ class Setup:
         io[K.P_AWARE] = int(opts.cell_aware)
         io[K.P_CROSS] = int(opts.cross_faces)
         # Hairer & Wanner's stiffness test on the method's stage pair at c = 1, where it has one
-        stiff = None if m is None else m.stiffness_stage
+        stiff = m.stiffness_stage
         io[K.P_STIFF] = -1 if stiff is None else stiff
+        if entry.kind == "rosenbrock":  # (cell-aware: its Jacobian is the cell polynomial's)
+            io[K.P_ROS], io[K.P_AWARE], io[K.P_CROSS], io[K.P_STIFF] = 1, 1, 0, -1
         self.io = io
 
     def tasks(self, n, emit):
@@ -332,7 +338,7 @@ class Setup:
         give (a task left out of the next pass stays where it is)."""
         out_p, out_par, out_n = (b[:active.size] for b in out)
         ran = self.advance(Launch(active, seeds, dirs, spacing, phase, *self.arrays, self.fo,
-                                  io, sf, si, out_p, out_par, out_n))
+                                  io, sf, si, out_p, out_par, out_n, self.stiff))
         self.paths.add(f"numba {ran}" if isinstance(ran, str) else self.backend_name)
         m = int(out_n.sum())
         part = np.empty((m, 3)), np.empty(m), np.empty(m), np.empty(m, np.int64)
@@ -445,16 +451,18 @@ def brick_pool(field: Field, opts: TraceOptions, backend="numba"):
     if fits and read_whole(field):
         return None
     entry = opts.entry
+    # (a plain line that switches to the Rosenbrock stepper locates its cell afresh, at a
+    # point whose brick need not be resident: auto goes brick by brick cell-aware only)
     why = ("the numba backend" if backend != "numba"
-           else f"method {entry.name}" if entry.explicit is None or entry.retrace is not None
-           else "")
+           else f"method {entry.name} without cell-aware stepping"
+           if entry.switch_to is not None and not opts.cell_aware else "")
     if why and fits:
         return None
     if why:
         raise FieldMemoryError(
             f"{stored.where}: {fmt_bytes(stored.nbytes)} do not fit the memory budget of "
-            f"{fmt_bytes(budget)}; a field read brick by brick is traced by the explicit "
-            f"methods on the numba backend, not {why}: give --memory "
+            f"{fmt_bytes(budget)}; a field read brick by brick is traced on the numba "
+            f"backend, not by {why}: give --memory "
             f"{fmt_bytes(stored.nbytes / POOL_SHARE)} or more, or another method")
     return BrickPool(stored, field.grid, budget)
 
@@ -467,12 +475,9 @@ def _check_backend(entry, backend) -> None:
         kind = str(backend).split(":")[0]
         ok = kind in entry.backends
     if not ok:
-        also = names(lambda e: e.retrace is entry)
-        hint = (f" (method {', '.join(also)} re-traces its stiff lines with {entry.name} on "
-                f"{entry.backends[0]})") if also else ""
         raise OptionsError(f"method {entry.name} runs on the {' and '.join(entry.backends)} "
                            f"backend{'s' if len(entry.backends) > 1 else ''} only, got backend "
-                           f"{backend if kind == 'callable' else repr(backend)}{hint}")
+                           f"{backend if kind == 'callable' else repr(backend)}")
 
 
 def _backend(backend):
@@ -508,14 +513,6 @@ def _batches(field, seeds, opts, setup, batch_seeds=BATCH_SEEDS):
 def _trace_batch(field, setup: Setup, seeds, opts: TraceOptions, id0: int) -> Lines:
     n = seeds.shape[0]
     both = opts.direction == "both"
-    entry = opts.entry
-    if entry.driver is not None:  # a method with its own step loop (Rosenbrock)
-        tseeds = np.repeat(seeds, 2, axis=0) if both else seeds
-        dirs = (np.tile(np.array([-1.0, 1.0]), n) if both
-                else np.full(n, -1.0 if opts.direction == "backward" else 1.0))
-        pts, t, s, owner, cols = entry.load_driver()(entry, setup, tseeds, dirs, opts.max_steps)
-        setup.paths.add(f"driver: {entry.name}")
-        return _assemble(field, opts, seeds, id0, pts, t, s, owner, cols)
     if both:  # task 2i: backward half, 2i + 1: forward half
         tseeds = np.repeat(seeds, 2, axis=0)
         dirs = np.tile(np.array([-1.0, 1.0]), n)
@@ -551,47 +548,33 @@ def _trace_batch(field, setup: Setup, seeds, opts: TraceOptions, id0: int) -> Li
     pts, t, s, owner, si = setup.run(tseeds, dirs, emit, spacing, phase, opts.budget)
     if setup.bricks is not None and opts.attributes:
         setup.bricks.release()  # (the attributes read near the vertices within the budget)
-    lines = _assemble(field, opts, seeds, id0, pts, t, s, owner, task_columns(si),
-                      setup.point_data, setup.bricks is not None)
-    if entry.retrace is not None:
-        lines = _retrace_stiff(field, setup, seeds, opts, lines)
-    return lines
+    return _assemble(field, opts, seeds, id0, pts, t, s, owner, task_columns(si, opts.entry),
+                     setup.point_data, setup.bricks is not None)
 
 
-def task_columns(si) -> dict:
-    """The line_data columns of tasks from their int state: reason and step counts."""
-    return {"reason": si[:, K.I_REASON].astype(np.int8),
+def task_columns(si, entry=None) -> dict:
+    """The line_data columns of tasks from their int state: reason, step counts (of both
+    steppers) and flags (int8): ``stiff``; a Rosenbrock entry adds ``stiff_steps`` (its steps
+    with h ρ(J) > HLAMBDA_STIFF), a stiff switch (auto) a flag named after its stiff method
+    (``ros34pw2``) on the lines that went on with it."""
+    cols = {"reason": si[:, K.I_REASON].astype(np.int8),
             "n_accepted": si[:, K.I_NACC].astype(np.int32),
             "n_rejected": si[:, K.I_NREJ].astype(np.int32),
             "n_crossing": si[:, K.I_NCROSS].astype(np.int32),
             "stiff": ((si[:, K.I_STIFF] & STIFF_BIT) != 0).astype(np.int8)}
-
-
-def _retrace_stiff(field, setup, seeds, opts, lines: Lines) -> Lines:
-    """A StiffSwitch (auto): the lines its explicit method flagged stiff, traced again from their
-    seeds by its stiff method (n_accepted/n_rejected then count that method's steps); the
-    line_data column named after the stiff method (``ros34pw2``) marks them."""
-    other = opts.entry.retrace
-    stiff = lines.line_data["stiff"] != 0
-    lines.line_data[other.name] = np.zeros(len(lines), np.int8)
-    if not stiff.any():
-        return lines
-    ros = _trace_batch(field, setup, seeds[stiff], opts.replace(method=other), 0)
-    ros.line_data["seed_id"] = lines.line_data["seed_id"][stiff]
-    ros.line_data["stiff"] = np.ones(len(ros), np.int8)  # as the explicit method found it
-    ros.line_data[other.name] = np.ones(len(ros), np.int8)
-    for extra in set(ros.line_data) - set(lines.line_data):  # the driver's own (stiff_steps)
-        del ros.line_data[extra]
-    both = Lines.concatenate([lines[~stiff], ros])
-    return both[np.argsort(both.line_data["seed_id"], kind="stable")]
+    if entry is not None and entry.kind == "rosenbrock":
+        cols["stiff_steps"] = si[:, K.I_NSTIFF].astype(np.int32)
+    elif entry is not None and entry.switch_to is not None:
+        cols[entry.switch_to.name] = (si[:, K.I_ROS] != 0).astype(np.int8)
+    return cols
 
 
 def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols,
               point_data=None, bricked=False) -> Lines:
     """Lines from the vertices of the tasks (grouped by task, in order along each) and per-task
     line_data columns; direction both joins task 2i (backward) and 2i + 1 (forward) through the
-    seed: reason is the forward half's (``reason_backward`` the other), stiff either half's,
-    counts summed."""
+    seed: reason is the forward half's (``reason_backward`` the other), flags (int8) either
+    half's, counts summed."""
     n = seeds.shape[0]
     both = opts.direction == "both"
     nt = 2 * n if both else n
@@ -616,7 +599,7 @@ def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols,
         for name, c in cols.items():
             if name == "reason":
                 ld.update(reason=c[1::2], reason_backward=c[0::2])
-            elif name == "stiff":
+            elif c.dtype == np.int8:
                 ld[name] = np.maximum(c[0::2], c[1::2])
             else:
                 ld[name] = c[0::2] + c[1::2]

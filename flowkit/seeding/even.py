@@ -43,7 +43,7 @@ from ..integrate.reasons import Reason
 from ..integrate.trace import line_attrs, resolve_options, stagnation_speed
 from ..jit import helper, inline
 from ..lines import Lines
-from .growth import Restarted, Resumed
+from .growth import Resumed
 
 DIRECTIONS = 6  # candidate seeds around the tangent of a line
 MAX_BATCH = 1024
@@ -435,9 +435,6 @@ class EvenSeeder:
         if opts.spacing is None and opts.entry.resamples:
             opts = opts.replace(spacing=0.5 * dtest)  # vertices dense enough for the dtest bound
         self.field, self.dsep, self.dtest, self.opts = field, float(dsep), float(dtest), opts
-        # line_data column of the lines a StiffSwitch traced again (ros34pw2), if any
-        retrace = opts.entry.retrace
-        self.retraced = None if retrace is None else retrace.name
         self.seed, self.backend, self.max_lines = int(seed), backend, max_lines
         g = field.grid
         self.bounds, self.period = g.bounds, np.array(g.period, np.float64)
@@ -450,13 +447,7 @@ class EvenSeeder:
         self.stats = {"traced": 0, "rejected": 0, "trace_calls": 0, "trace_vertices": 0,
                       "trace_seconds": 0.0}
         chunk = chunk or CHUNK * self.dsep
-        entry = opts.entry
-        if entry.driver is None and entry.retrace is None:  # the tracing kernel's methods
-            self.source = Resumed(field, opts, backend, self.signs, chunk, self.store,
-                                  self.stats)
-        else:
-            self.source = Restarted(field, opts, backend, self.signs, chunk, self.store,
-                                    self.stats, self.retraced)
+        self.source = Resumed(field, opts, backend, self.signs, chunk, self.store, self.stats)
 
     # -- candidates -----------------------------------------------------------------------------
     def _usable(self, pts):
@@ -616,9 +607,10 @@ class EvenSeeder:
         offsets = np.zeros(n + 1, np.int64)
         np.cumsum(counts, out=offsets[1:])
         both = opts.direction == "both"
+        # (the counts and flags the method's lines carry: task_columns')
         dtypes = {"reason": np.int8, **({"reason_backward": np.int8} if both else {}),
-                  "n_accepted": np.int32, "n_rejected": np.int32, "n_crossing": np.int32,
-                  "stiff": np.int8, **({self.retraced: np.int8} if self.retraced is not None else {})}
+                  **{k: (np.int8 if k in self.source.flags else np.int32)
+                     for k in self.source.columns if k != "reason"}}
         cat = {k: np.concatenate(self.lines[k]) if self.lines else np.zeros(0)
                for k in [*dtypes, "seed"]}
         line_data = {"seed_id": np.arange(n, dtype=np.int64)}
