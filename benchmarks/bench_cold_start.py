@@ -42,6 +42,7 @@ SCENARIOS = {
     "rk4_plain": "flowkit.trace(field, s, max_length=20, method='rk4', step=0.05, "
                  "cell_aware=False)",
     "rosenbrock": "flowkit.trace(field, s, max_length=20, method='ros34pw2')",
+    "auto": "flowkit.trace(field, s, max_length=20, method='auto')",
     "pathlines": "from flowkit.integrate.pathlines import pathlines\n"
                  "pathlines(str(datasets.hotroom_path()), s, max_time=200.0)",
     "demo_scene": "from flowkit.cli.demo import scene_path\nfrom flowkit.scene import run_scene\n"
