@@ -117,11 +117,28 @@ def test_at_most_two_snapshots_in_memory(tmp_path, monkeypatch):
     assert _max_error(lines, seeds, np.zeros(2)) < 10 * 1e-8 * EXTENT
 
 
+@pytest.mark.parametrize("step", [0.02, 0.01])
+def test_fixed_step_rk4_converges_at_fourth_order(step):
+    """rk4 at a fixed step (Parcels' default scheme): the error against the exact trajectory is
+    O(h^4) (the interpolation is exact here), the last step clipped to each interval's end."""
+    rng = np.random.default_rng(4)
+    seeds = np.c_[rng.uniform(-0.8, 0.8, (6, 2)), rng.uniform(-0.5, 0.5, 6)]
+    release = np.zeros(6)
+    lines = P.pathlines(SERIES, seeds, release, method="rk4", step=step)
+    err = _max_error(lines, seeds, release)
+    coarse = _max_error(P.pathlines(SERIES, seeds, release, method="rk4", step=2 * step), seeds,
+                        release)
+    assert 12.0 < coarse / err < 20.0, (coarse, err)  # 2^4
+    assert np.all(lines.line_data["reason"] == Reason.LEFT_TIME_RANGE)
+    t = lines.line_attribute("time", 0)
+    np.testing.assert_allclose(np.diff(t)[:-1], step, rtol=1e-9)  # (whole steps to t = 0.5 ...)
+
+
 def test_bad_options_and_series():
     with pytest.raises(OptionsError, match="direction"):
         P.pathlines(SERIES, [[0, 0, 0]], direction="both")
-    with pytest.raises(OptionsError, match="adaptive"):
-        P.pathlines(SERIES, [[0, 0, 0]], method="rk4")
+    with pytest.raises(OptionsError, match="ros34pw2 is offered by flowkit.trace"):
+        P.pathlines(SERIES, [[0, 0, 0]], method="ros34pw2")
     with pytest.raises(KeyError, match="unknown pathline attribute 'vort'"):
         P.pathlines(SERIES, [[0, 0, 0]], attributes=("vort",))
     with pytest.raises(ValueError, match="two snapshots"):

@@ -4,18 +4,12 @@ The velocity between two snapshots at times t_k < t_k+1 is interpolated linearly
 ``v(x, t) = (1 - a) v_k(x) + a v_k+1(x)`` with ``a = (t - t_k) / (t_k+1 - t_k)``, and trilinearly in
 space (``flowkit.fields.interp``).  The driver walks the snapshot intervals in time order
 (reverse order for ``direction="backward"``) holding at most two snapshots in memory: snapshot
-k is dropped before snapshot k+2 is loaded.  In each interval a numba kernel advances every
-line with an adaptive explicit Runge–Kutta method taken from the method registry
-(``methods.py``: the same tableau data the streamline kernel uses, dopri5 by default, with its
-dense output); steps are clipped to the interval end because the interpolated field has a kink
-in time there.
-
-Why a kernel of its own: the streamline kernel (``kernel.py``) evaluates a steady field from the
-8 corner values of one cell gathered once per cell; it has no notion of time in the field.  This
-kernel shares the method tableaux, the trilinear interpolation (``interp.locate_axis``,
-``interp.trilinear_vector``), the step-size controller, the dense output and the leading state
-and option columns (``schema.py``) of ``kernel.py`` (its error norm is the same formula, kept in step by the tests on analytic
-fields) but evaluates two snapshots per stage.
+k is dropped before snapshot k+2 is loaded.  In each interval the tracing kernel's step loop
+(``kernel._advance_lines``, with the field between the two snapshots as its evaluator:
+``unsteady.py``) advances every line with an explicit Runge–Kutta method from the method
+registry: dopri5 by default, adaptive with its dense output, or at fixed steps (rk4, euler:
+``step``, by default half the time to cross the smallest cell at the typical speed); steps are
+clipped to the interval end because the interpolated field has a kink in time there.
 
 Seeds are released at given times (default: the start of the series, its end when backward).
 Every line records why it stopped: ``out_of_domain`` (the last vertex ON the boundary, found on
@@ -146,8 +140,6 @@ def _check_options(opts: TraceOptions, kw) -> TraceOptions:
                            f"got {opts.direction!r}")
     if opts.parameter != "time":
         raise OptionsError(f"pathlines: option parameter must be time, got {opts.parameter!r}")
-    if not opts.method_obj.adaptive:
-        raise OptionsError(f"pathlines: option method must be adaptive, got {opts.method_name!r}")
     if opts.spacing is not None or opts.count is not None:
         raise OptionsError("pathlines: options spacing and count are not supported "
                            "(vertices are the accepted steps)")
@@ -203,7 +195,10 @@ class _Setup:
         fo[K.O_SAFETY], fo[K.O_FACMIN], fo[K.O_FACMAX] = (opts.safety, opts.min_factor,
                                                           opts.max_factor)
         fo[K.O_BETA] = opts.beta
-        fo[K.O_H0] = opts.step or 0.0
+        if opts.method_obj.adaptive:
+            fo[K.O_H0] = opts.step or 0.0
+        else:  # fixed steps: half the time to cross the smallest cell at the typical speed
+            fo[K.O_H0] = opts.step if opts.step is not None else 0.5 * cross
         fo[K.O_HMIN] = opts.min_step if opts.min_step is not None else 1e-10 * cross
         fo[K.O_HMAX] = opts.max_step if opts.max_step is not None else np.inf
         fo[K.O_MAXLEN], fo[K.O_MAXTIME] = opts.max_length, opts.max_time
