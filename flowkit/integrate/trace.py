@@ -468,9 +468,9 @@ def brick_pool(field: Field, opts: TraceOptions, backend="numba"):
 
 
 def _check_backend(entry, backend) -> None:
-    """The method runs on the backend: a callable stands in for the explicit kernel."""
+    """The method runs on the backend: a callable stands in for the explicit stepper."""
     if callable(backend):
-        ok, kind = entry.explicit is not None, "callable"
+        ok, kind = entry.kind == "explicit", "callable"
     else:
         kind = str(backend).split(":")[0]
         ok = kind in entry.backends
