@@ -20,6 +20,8 @@ import mmap
 
 import numpy as np
 
+from ..jit import inline
+
 B_SIZE, B_COUNT, B_NODES, B_TABLE = 0, 3, 6, 9
 NO_BRICKS = np.zeros(0, np.int64)
 
@@ -29,6 +31,41 @@ POOL_SHARE = 0.8  # of a memory budget for the bricks; the rest for lines, buffe
 WHOLE_BYTES = 64 << 20  # an array in a file this small is read whole: bricks would not pay
 GROUP_BYTES = 256 << 20  # of pages ``by_bricks`` fills before it computes and gives them back
 BRICK_NODES = 64  # along each axis, where the file is not chunked
+
+
+# -- the table as the step loops read it (inlined into them) --------------------------------
+@inline
+def axis_bricks(size, n, i):
+    """Along an axis of n nodes in bricks of ``size``: (brick, index in it) of node i and of
+    node i + 1 (node 0 after the last on a wrapped axis)."""
+    b0 = i // size
+    l0 = i - b0 * size
+    if l0 + 1 < size and i + 1 < n:
+        return b0, l0, b0, l0 + 1
+    up = i + 1 if i + 1 < n else 0
+    b1 = up // size
+    return b0, l0, b1, up - b1 * size
+
+
+@inline
+def slot_of(bk, bx, by, bz):
+    return bk[B_TABLE + (bx * bk[B_COUNT + 1] + by) * bk[B_COUNT + 2] + bz]
+
+
+@inline
+def missing_brick(bk, i, j, k):
+    """A brick holding a corner of cell (i, j, k) of a bricked field that is not resident (the
+    first found), else -1."""
+    bx0, _, bx1, _ = axis_bricks(bk[B_SIZE], bk[B_NODES], i)
+    by0, _, by1, _ = axis_bricks(bk[B_SIZE + 1], bk[B_NODES + 1], j)
+    bz0, _, bz1, _ = axis_bricks(bk[B_SIZE + 2], bk[B_NODES + 2], k)
+    for d in range(8):
+        bx = bx1 if d & 1 else bx0
+        by = by1 if d & 2 else by0
+        bz = bz1 if d & 4 else bz0
+        if slot_of(bk, bx, by, bz) < 0:
+            return (bx * bk[B_COUNT + 1] + by) * bk[B_COUNT + 2] + bz
+    return -1
 
 
 def brick_nodes(stored, grid) -> np.ndarray:
