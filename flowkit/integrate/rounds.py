@@ -91,6 +91,21 @@ class Rounds:
         return np.concatenate([active[~waiting], rows[pick[ok]]])
 
 
+def serve(active: np.ndarray, si: np.ndarray, run, rounds: Rounds | None = None, owned=None):
+    """Passes until every task of ``active`` is done: each pass runs ``run(ready)`` on the tasks
+    ``rounds.ready`` gives (all of them without ``rounds``), which returns (what the pass gave,
+    which of ``ready`` have more to do); with ``owned``, until every task left waits for a
+    block served elsewhere.  Yields (what the pass gave, the number of tasks left, whether the
+    pass was a round)."""
+    while active.size:
+        ready = active if rounds is None else rounds.ready(active, si, owned)
+        if not ready.size:  # every task left waits for a block served elsewhere
+            return
+        got, busy = run(ready)
+        active = active[busy] if ready is active else np.setdiff1d(active, ready[~busy])
+        yield got, active.size, ready is not active
+
+
 def _within(need: np.ndarray, slots: int) -> np.ndarray:
     """The leading rows of ``need`` (bricks per line, -1: none) whose bricks together fit
     ``slots`` (at least the first row)."""
