@@ -8,8 +8,9 @@ A bricked field keeps some bricks in memory, in a pool of slots; the table maps 
 its slot (-1: not resident).  Layout of the int64 table array ``bk``: ``bk[B_SIZE:B_SIZE + 3]``
 nodes per brick along each axis, ``bk[B_COUNT:B_COUNT + 3]`` bricks along each axis,
 ``bk[B_NODES:B_NODES + 3]`` the grid's nodes along each axis, ``bk[B_TABLE:]`` the slot of each
-brick, C order.  The pool is one array of shape (slots * s0, s1, s2, 3), slot after slot.  An
-empty table (``NO_BRICKS``) means the vector array is the whole field.
+brick, C order.  The pool is one array of shape (slots * s0, s1, s2, 3), slot after slot; for
+pathlines, two snapshots' pools share one table (``unsteady.velocity`` reads both).  An empty
+table (``NO_BRICKS``) means the vector array is the whole field.
 """
 
 from __future__ import annotations

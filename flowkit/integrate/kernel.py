@@ -444,7 +444,7 @@ def _stage(ma, mc, k, st, y, hs, yt, tau, param, inc, gx, gy, gz, period, inv, v
     None), the cell the step starts in (``inc``), or the cell holding the point."""
     _stage_point(ma, k, st, y, hs, yt)
     if vb is not None:
-        stage(yt, tau + mc[st] * hs, gx, gy, gz, period, inv, vec, vb, tp, k, st)
+        stage(yt, tau + mc[st] * hs, gx, gy, gz, period, inv, vec, vb, bk, tp, k, st, ci)
     elif inc:
         _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
     else:
@@ -848,10 +848,12 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, bk, kexp,
 
 
 @helper
-def _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, v0, v1, tp, kexp, fo, sf, si,
-                out_p, out_par, out_n, k, coef, cf, ci, y, yt):
+def _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, v0, v1, bk, tp, kexp, fo, sf,
+                si, out_p, out_par, out_n, k, coef, cf, ci, y, yt):
     """``_start`` for a pathline: released at tp[3 + l] into the field between the snapshots
-    v0 and v1 (at tp[0], tp[1]); its initial step no longer than the time left to tp[2]."""
+    v0 and v1 (at tp[0], tp[1]); its initial step no longer than the time left to tp[2].  False
+    when the seed lies outside the domain or in NaN data (the line is done) or where a brick is
+    not resident (ci[3]: it waits)."""
     d = dirs[l]
     px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
     inside = True
@@ -860,10 +862,11 @@ def _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, v0, v1, tp, kexp,
         if period[a] == 0.0 and not (c[0] <= seeds[l, a] <= c[c.size - 1]):
             inside = False
     t = tp[3 + l]
-    if not (inside and velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, tp[0], tp[1], k,
-                                np.int64(0))):
-        si[l, I_STATUS] = DONE
-        si[l, I_REASON] = R_SEED
+    if not (inside and velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, bk, tp[0], tp[1],
+                                k, np.int64(0), ci)):
+        if ci[3] < 0:
+            si[l, I_STATUS] = DONE
+            si[l, I_REASON] = R_SEED
         return False
     y[0], y[1], y[2], y[3] = px, py, pz, 0.0
     hmax = fo[O_HMAX]
@@ -873,8 +876,10 @@ def _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, v0, v1, tp, kexp,
         h0 = min(h0, hmax, max(abs(tp[2] - t), HINIT_MIN_STEP))
         for a in range(3):
             yt[a] = y[a] + d * h0 * k[0, a]
-        ok = velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv, v0, v1, tp[0],
-                      tp[1], k, np.int64(1))
+        ok = velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv, v0, v1, bk, tp[0],
+                      tp[1], k, np.int64(1), ci)
+        if ci[3] >= 0:
+            return False
         h = _initial_step(fo, y, k, h0, d1, kexp, ok)
     h = d * min(h, hmax)
     zero = np.int64(0)
@@ -906,9 +911,10 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
     The field evaluator and the stepper are compile-time choices: numba compiles this loop once
     per type of ``vb`` and ``ros`` and drops the branches of the ones that are None (arrays
     inside a tuple cannot be handed on without NRT).  ``vb``, for pathlines: the snapshot at
-    time tp[1], ``vec`` the one at tp[0]; the field between them (``unsteady.py``; plain
-    stepping, time the parameter ``tau``, absolute); lines start at their release times
-    ``tp[3 + l]`` and stop at tp[2], the end of the interval, to go on in the next one.
+    time tp[1], ``vec`` the one at tp[0] (bricked: the two snapshots' pools, ``bk`` the table
+    of both); the field between them (``unsteady.py``; plain stepping, time the parameter
+    ``tau``, absolute); lines start at their release times ``tp[3 + l]`` and stop at tp[2], the
+    end of the interval, to go on in the next one.
     ``ros``: the Rosenbrock stepper's table (``rosenbrock.table``), for the lines with
     si[l, I_ROS] set: from their seeds (io[P_ROS]), or from the step where the explicit
     stepper's stiffness test flags them (``auto``); cell-aware, never across faces, with the
@@ -960,8 +966,8 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                                  yt, dlo, dhi)
             else:
                 started = _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, vec,
-                                      vb, tp, kexp, fo, sf, si, out_p, out_par, out_n, k, coef,
-                                      cf, ci, y, yt)
+                                      vb, bk, tp, kexp, fo, sf, si, out_p, out_par, out_n, k,
+                                      coef, cf, ci, y, yt)
             if not started:
                 si[l, I_WAIT] = ci[3] + 1
                 continue
