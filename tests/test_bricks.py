@@ -226,6 +226,16 @@ def test_a_bricked_trace_shows_its_progress(tmp_path, capsys):
     assert "trace (bricks)" in err and "40/40" in err and "kB read" in err
 
 
+def test_no_vertex_under_a_budget_gives_empty_attributes(tmp_path):
+    """Every seed outside: the lines have no vertex, their attributes none either (they were
+    sampled brick by brick from no point, over and over)."""
+    fld = load_field(_abc_file(tmp_path / "abc.h5"))
+    lines = trace(fld, np.full((3, 3), 50.0), memory="120kB", empty="ignore",
+                  attributes=["speed", "vorticity", "T"])
+    assert lines.n_points == 0 and lines.point_data["vorticity"].shape == (0, 3)
+    assert lines.point_data["T"].shape == (0,)
+
+
 def test_attributes_under_a_budget_read_no_scalar_they_do_not_use(tmp_path):
     """Vorticity sampled brick by brick leaves T in its file (reading every scalar of the field
     whole for each group cost 4.3 GB at 1024^3)."""
