@@ -83,7 +83,7 @@ HELPERS = {
         ("flowkit.fields.interp", "corner", (I, I, I, I, I, I, I, F, F, F,)),
         ("flowkit.fields.interp", "finite_or_nan", (F, F, F,)),
         ("flowkit.fields.interp", "trilinear_vector", (F4, I, I, I, F, F, F,)),
-        ("flowkit.integrate.unsteady", "_trilinear", (F4, I1, I, I, I, F, F, F,)),
+        ("flowkit.integrate.unsteady", "_trilinear_bricks", (F4, I1, I, I, I, F, F, F,)),
         ("flowkit.integrate.unsteady", "velocity", (F, F, F, F, F1, F1, F1, F1, F1, F4, F4, I1, F,
          F, F2, I, I1,)),
         ("flowkit.integrate.kernel", "_start_path", (I, I, F2, F1, F1, F1, F1, F1, F1, F4, F4, I1,

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..fields.bricks import B_NODES, B_SIZE, axis_bricks, missing_brick, slot_of
 from ..fields.interp import corner, finite_or_nan, locate_axis, trilinear_vector
-from ..jit import inline, kernel
+from ..jit import helper, inline, kernel
 
 
 @inline
@@ -36,12 +36,11 @@ def _axis(c, period, inv, x):
     return i, t
 
 
-@inline
-def _trilinear(vec, bk, i, j, k, tx, ty, tz):
-    """``interp.trilinear_vector`` of cell (i, j, k); bricked, its corners read from their
-    bricks' slots (all resident), in the same order with the same weights: the same value."""
-    if bk.size == 0:
-        return trilinear_vector(vec, i, j, k, tx, ty, tz)
+@helper
+def _trilinear_bricks(vec, bk, i, j, k, tx, ty, tz):
+    """``interp.trilinear_vector`` of cell (i, j, k) with its corners read from their bricks'
+    slots (all resident), in the same order with the same weights: the same value.  Called,
+    not inlined: compiled once for both snapshots."""
     # each axis' two nodes as (brick, index in it)
     bx0, i0, bx1, i1 = axis_bricks(bk[B_SIZE], bk[B_NODES], i)
     by0, j0, by1, j1 = axis_bricks(bk[B_SIZE + 1], bk[B_NODES + 1], j)
@@ -71,14 +70,17 @@ def velocity(x, y, z, t, gx, gy, gz, period, inv, v0, v1, bk, t0, t1, k, row, ci
     i, tx = _axis(gx, period[0], inv[0], x)
     j, ty = _axis(gy, period[1], inv[1], y)
     m, tz = _axis(gz, period[2], inv[2], z)
-    if bk.size > 0:
+    if bk.size == 0:
+        u0, w0, s0, bad0 = trilinear_vector(v0, i, j, m, tx, ty, tz)
+        u1, w1, s1, bad1 = trilinear_vector(v1, i, j, m, tx, ty, tz)
+    else:
         missing = missing_brick(bk, i, j, m)
         if missing >= 0:
             ci[3] = missing
             return False
+        u0, w0, s0, bad0 = _trilinear_bricks(v0, bk, i, j, m, tx, ty, tz)
+        u1, w1, s1, bad1 = _trilinear_bricks(v1, bk, i, j, m, tx, ty, tz)
     a = (t - t0) / (t1 - t0)
-    u0, w0, s0, bad0 = _trilinear(v0, bk, i, j, m, tx, ty, tz)
-    u1, w1, s1, bad1 = _trilinear(v1, bk, i, j, m, tx, ty, tz)
     if bad0 or bad1:
         return False
     u = (1.0 - a) * u0 + a * u1
