@@ -139,7 +139,7 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
         if vertices and vertices[0].size:  # with their attributes, from the two snapshots
             owner, pts, tv, sv = vertices
             if pool is not None and opts.attributes:
-                pool.release()  # (they are read near the vertices, within the budget)
+                pool.release()  # (its pages back while they read near the vertices)
             chunks.append((owner, pts, tv, sv, _sampled(opts.attributes, fa, fb, ta, tb, pts, tv,
                                                          pool is not None)))
     still = si[:, K.I_STATUS]
