@@ -43,30 +43,39 @@ EXTENT = 4 * np.pi
 CHUNK = 64
 
 
-def write_abc(path: Path, n: int) -> None:
-    """ABC at n^3 nodes, float32, as a flowkit HDF5 field, written a slab at a time."""
+def write_abc(path: Path, n: int, chunk: int = CHUNK, coef=(A, B, C), scalar: bool = True,
+              time: float | None = None) -> None:
+    """ABC at n^3 nodes, float32, as a flowkit HDF5 field, written a slab at a time: U chunked
+    ``chunk``^3 nodes with the coefficients ``coef`` (A, B, C), and T unless not ``scalar``;
+    ``time``: the snapshot's time."""
     import h5py
 
+    a, b, cc = coef
     x = np.linspace(0.0, EXTENT, n)
-    c = min(CHUNK, n)
+    c = min(chunk, n)
     with h5py.File(path, "w") as f:
         f.attrs["flowkit_format"] = "field"
         f.attrs["flowkit_format_version"] = 1
         f.attrs["vector_name"] = "U"
+        if time is not None:
+            f.attrs["time"] = time
         for name in "xyz":
             f[name] = x
         u = f.create_dataset("vectors/U", (n, n, n, 3), np.float32, chunks=(c, c, c, 3))
-        t = f.create_dataset("scalars/T", (n, n, n), np.float32, chunks=(c, c, c))
-        u.attrs["units"], t.attrs["units"] = "m/s", "K"
+        u.attrs["units"] = "m/s"
+        if scalar:
+            t = f.create_dataset("scalars/T", (n, n, n), np.float32, chunks=(c, c, c))
+            t.attrs["units"] = "K"
         y, z = x[None, :, None], x[None, None, :]
         for i0 in range(0, n, c):
             xs = x[i0:i0 + c, None, None]
             slab = np.empty((xs.shape[0], n, n, 3), np.float32)
-            slab[..., 0] = A * np.sin(z) + C * np.cos(y)
-            slab[..., 1] = B * np.sin(xs) + A * np.cos(z)
-            slab[..., 2] = C * np.sin(y) + B * np.cos(xs)
+            slab[..., 0] = a * np.sin(z) + cc * np.cos(y)
+            slab[..., 1] = b * np.sin(xs) + a * np.cos(z)
+            slab[..., 2] = cc * np.sin(y) + b * np.cos(xs)
             u[i0:i0 + c] = slab
-            t[i0:i0 + c] = (300.0 + np.sin(xs) * np.cos(y) + 0 * z).astype(np.float32)
+            if scalar:
+                t[i0:i0 + c] = (300.0 + np.sin(xs) * np.cos(y) + 0 * z).astype(np.float32)
 
 
 def seeds(n_seeds: int, octant: bool = False) -> np.ndarray:

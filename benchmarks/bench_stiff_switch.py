@@ -30,7 +30,8 @@ def main(argv=None) -> int:
     seeds = rng.uniform([-0.9, -0.9, 0.2], [0.9, 0.9, 1.0], (args.seeds, 3))
     T = 5.0
     exact = stiff.trajectory(seeds, T)
-    kw = dict(rtol=args.tol, atol=args.tol, max_time=T, max_steps=10**6, stagnation_rel=1e-6)
+    kw = {"rtol": args.tol, "atol": args.tol, "max_time": T, "max_steps": 10**6,
+          "stagnation_rel": 1e-6}
     print(f"stiff linear field, {args.seeds} seeds, tol {args.tol:g}, t = {T}")
     print("| method | median err | max err | steps/line | s (best of 3) | switched |")
     print("|---|---|---|---|---|---|")

@@ -13,7 +13,8 @@ from flowkit.cli import main
 from flowkit.fields import Field, bricks, load_field, save_field
 from flowkit.fields.analytic import ABCFlow
 from flowkit.fields.grid import Grid
-from flowkit.fields.stored import FieldMemoryError
+from flowkit.fields.stored import FieldMemoryError, Stored
+from flowkit.integrate.pathlines import pathlines
 from flowkit.io.lines_h5 import read_lines
 
 L = 2 * np.pi
@@ -26,12 +27,15 @@ def _small_files_by_bricks(monkeypatch):
     monkeypatch.setattr(bricks, "WHOLE_BYTES", 0)
 
 
-def _abc_file(path, n=24, chunk=8, periodic=False, hole=None):
-    """ABC at n^3 nodes, float32, chunked (a brick per chunk); ``hole``: a box of NaN nodes."""
-    f = ABCFlow().to_field(n, bounds=[[0, L]] * 3, periodic=periodic)
+def _abc_file(path, n=24, chunk=8, periodic=False, hole=None, t=None):
+    """ABC at n^3 nodes, float32, chunked (a brick per chunk); ``hole``: a box of NaN nodes;
+    ``t``: a snapshot of an unsteady ABC flow (its coefficients and T change with t)."""
+    flow = ABCFlow() if t is None else ABCFlow(A=np.sqrt(3) * (1 + 0.3 * np.sin(t)),
+                                               B=np.sqrt(2) * (1 - 0.2 * t), C=1 + 0.1 * t)
+    f = flow.to_field(n, bounds=[[0, L]] * 3, periodic=periodic)
     v = f.vector.astype(np.float32)
     t = (np.sin(f.grid.x)[:, None, None] * np.cos(f.grid.y)[None, :, None]
-         + f.grid.z[None, None, :]).astype(np.float32)
+         + f.grid.z[None, None, :] + (t or 0.0)).astype(np.float32)
     if hole is not None:
         v[hole] = np.nan
     save_field(Field(f.grid, v, {"T": t}, source="abc"), path, compression=None)
@@ -222,6 +226,16 @@ def test_a_bricked_trace_shows_its_progress(tmp_path, capsys):
     assert "trace (bricks)" in err and "40/40" in err and "kB read" in err
 
 
+def test_no_vertex_under_a_budget_gives_empty_attributes(tmp_path):
+    """Every seed outside: the lines have no vertex, their attributes none either (they were
+    sampled brick by brick from no point, over and over)."""
+    fld = load_field(_abc_file(tmp_path / "abc.h5"))
+    lines = trace(fld, np.full((3, 3), 50.0), memory="120kB", empty="ignore",
+                  attributes=["speed", "vorticity", "T"])
+    assert lines.n_points == 0 and lines.point_data["vorticity"].shape == (0, 3)
+    assert lines.point_data["T"].shape == (0,)
+
+
 def test_attributes_under_a_budget_read_no_scalar_they_do_not_use(tmp_path):
     """Vorticity sampled brick by brick leaves T in its file (reading every scalar of the field
     whole for each group cost 4.3 GB at 1024^3)."""
@@ -229,3 +243,99 @@ def test_attributes_under_a_budget_read_no_scalar_they_do_not_use(tmp_path):
     lines = trace(fld, SEEDS[:5], max_length=4.0, memory="120kB", attributes=["vorticity"])
     assert np.isfinite(lines.point_data["vorticity"]).any()
     assert not fld.scalars.in_memory("T") and not fld.vector_in_memory()
+
+
+# -- pathlines: two snapshots' bricks ----------------------------------------------------------
+TIMES = (0.0, 0.7, 1.5, 2.0)
+
+
+def _series(tmp_path, **kw):
+    """An unsteady ABC flow as a series of chunked files: [(time, path)]."""
+    return [(t, _abc_file(tmp_path / f"abc_{i}.h5", t=t, **kw)) for i, t in enumerate(TIMES)]
+
+
+def _in_memory(series):
+    """The snapshots read whole, as Fields in memory."""
+    out = []
+    for t, path in series:
+        f = load_field(path)
+        _ = f.vector, f.scalars["T"]
+        out.append((t, f))
+    return out
+
+
+ATTRIBUTES = ["speed", "velocity", "vorticity", "vorticity_magnitude", "T", "arc_length",
+              "distance_to_seed"]
+RELEASE = np.random.default_rng(6).uniform(0.0, 2.0, len(SEEDS))  # inside the intervals
+PATH_CASES = {
+    "forward": {"max_time": 1.5},
+    "backward": {"max_time": 1.5, "direction": "backward"},
+    "released inside intervals, attributes": {"max_time": 1.0, "attributes": ATTRIBUTES,
+                                              "release": RELEASE},
+    "backward, released inside intervals, attributes": {
+        "max_time": 1.0, "attributes": ATTRIBUTES, "release": RELEASE, "direction": "backward"},
+    "dop853, periodic": {"max_time": 2.0, "method": "dop853", "rtol": 1e-8,
+                         "attributes": ["vorticity"], "periodic": True},
+    "rk4 at fixed steps": {"max_time": 1.5, "method": "rk4", "step": 0.05, "release": RELEASE},
+}
+
+
+@pytest.mark.parametrize("case", PATH_CASES)
+def test_budgeted_pathlines_equal_pathlines_in_memory(case, tmp_path):
+    kw = dict(PATH_CASES[case])
+    release = kw.pop("release", None)
+    series = _series(tmp_path, periodic=kw.pop("periodic", False))
+    whole = pathlines(_in_memory(series), SEEDS, release, **kw)
+    lines = pathlines(series, SEEDS, release, memory="185kB", **kw)  # 12 of 27 bricks, twice
+    _same(whole, lines)
+    assert lines.attrs["bricks_read"] > 0 and lines.attrs["brick_rounds"] > 1
+    assert lines.offsets[-1] > 5 * len(SEEDS)
+
+
+def test_budgeted_pathlines_through_a_nan_hole_across_a_brick_face(tmp_path):
+    hole = (slice(6, 11), slice(6, 11), slice(None))  # nodes 6..10: across the face at node 8
+    series = _series(tmp_path, hole=hole)
+    whole = pathlines(_in_memory(series), SEEDS, RELEASE, max_length=8.0, attributes=["speed"])
+    lines = pathlines(series, SEEDS, RELEASE, max_length=8.0, attributes=["speed"],
+                      memory="185kB")
+    _same(whole, lines)
+    assert np.any(lines.line_data["reason"] == 6)  # nan_field
+
+
+def test_budgeted_pathlines_hold_two_snapshots_bricks_and_read_none_whole(tmp_path, monkeypatch):
+    """The pool holds two time levels under one table; a snapshot is read only while it is one
+    of the interval's two, never whole (nor by the attributes), and where the pool holds every
+    brick, the snapshot two intervals share is not read again: each brick of each snapshot
+    once."""
+    series = _series(tmp_path)
+    where = {str(path): i for i, (_, path) in enumerate(series)}
+
+    def whole(self, progress=None):
+        raise AssertionError(f"{self.where} read whole")
+
+    monkeypatch.setattr(Stored, "read", whole)
+    reads = []  # (snapshot, brick, the snapshots of the pool's levels)
+    read = bricks.BrickPool._read
+
+    def counting(self, brick, slot):
+        if len(self.sources) > 1:  # (the trace's pool; the attributes' have one level each)
+            levels = [where[s.where.rsplit(":", 1)[0]] for s in self.sources]
+            reads.extend((levels[i], brick, tuple(levels))
+                         for i in np.flatnonzero(~self.valid[:, slot]))
+        read(self, brick, slot)
+
+    monkeypatch.setattr(bricks.BrickPool, "_read", counting)
+    corner = np.random.default_rng(1).random((20, 3)) * 2.0
+    lines = pathlines(series, corner, max_time=2.0, memory="185kB", attributes=["vorticity"])
+    assert np.isfinite(lines.point_data["vorticity"]).all()
+    pairs = [r[2] for r in reads]
+    assert set(pairs) == {(0, 1), (1, 2), (2, 3)}
+    assert pairs == sorted(pairs)  # each pair's reads before the next pair's
+    assert all(snap in pair for snap, _, pair in reads)
+    pool_bytes = lines.attrs["brick_pool_bytes"]
+    assert pool_bytes <= bricks.POOL_SHARE * 185e3 and pool_bytes == 2 * 12 * 8 ** 3 * 12
+    # a budget that holds every brick: each (snapshot, brick) read once, the lines the same
+    reads.clear()
+    again = pathlines(series, corner, max_time=2.0, memory="10MB")
+    assert len(reads) == len({r[:2] for r in reads})
+    assert np.array_equal(again.points, lines.points)

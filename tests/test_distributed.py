@@ -259,6 +259,30 @@ def test_cli_series_and_pathlines_on_a_running_cluster(client, tmp_path, capsys)
     assert "--snapshots 'x'" in capsys.readouterr().err
 
 
+def test_cli_pathlines_under_a_memory_budget(client, tmp_path):
+    """--memory reaches the pathlines on the workers: snapshots two of which do not fit it are
+    read brick by brick there, and the lines are those read whole."""
+    import json
+
+    from test_bricks import _in_memory, _series
+
+    from flowkit.cli import main
+    from flowkit.integrate.seeds import parse_seed_spec
+
+    series = _series(tmp_path)  # four snapshots of 24^3 nodes in chunks of 8^3 (166 kB each)
+    (tmp_path / "abc.series").write_text(json.dumps({"file-series-version": "1.0", "files": [
+        {"name": Path(p).name, "time": t} for t, p in series]}))
+    out = tmp_path / "paths.h5"
+    assert main(["trace", str(tmp_path / "abc.series"), "-o", str(out), "--seeds",
+                 "random:30:4", "--pathlines", "--release", "0.3", "--max-time", "1.5",
+                 "--attributes", "speed,T", "--memory", "185kB", "--float64", "--scheduler",
+                 client.scheduler.address, "--quiet"]) == 0
+    got = read_lines(out)
+    seeds = parse_seed_spec("random:30:4", load_field(series[0][1]))
+    ref = pathlines(_in_memory(series), seeds, 0.3, max_time=1.5, attributes=("speed", "T"))
+    assert got.equals(ref) and got.attrs["bricks_read"] > 0
+
+
 def test_local_cluster_started_for_the_job(tmp_path):
     seeds = _seeds(120, 8)
     ref = _single(tmp_path, 1, seeds, "single.h5")

@@ -8,8 +8,9 @@ A bricked field keeps some bricks in memory, in a pool of slots; the table maps 
 its slot (-1: not resident).  Layout of the int64 table array ``bk``: ``bk[B_SIZE:B_SIZE + 3]``
 nodes per brick along each axis, ``bk[B_COUNT:B_COUNT + 3]`` bricks along each axis,
 ``bk[B_NODES:B_NODES + 3]`` the grid's nodes along each axis, ``bk[B_TABLE:]`` the slot of each
-brick, C order.  The pool is one array of shape (slots * s0, s1, s2, 3), slot after slot.  An
-empty table (``NO_BRICKS``) means the vector array is the whole field.
+brick, C order.  The pool is one array of shape (slots * s0, s1, s2, 3), slot after slot; for
+pathlines, two snapshots' pools share one table (``unsteady.velocity`` reads both).  An empty
+table (``NO_BRICKS``) means the vector array is the whole field.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ import mmap
 
 import numpy as np
 
+from ..jit import inline
+
 B_SIZE, B_COUNT, B_NODES, B_TABLE = 0, 3, 6, 9
 NO_BRICKS = np.zeros(0, np.int64)
 
@@ -29,6 +32,41 @@ POOL_SHARE = 0.8  # of a memory budget for the bricks; the rest for lines, buffe
 WHOLE_BYTES = 64 << 20  # an array in a file this small is read whole: bricks would not pay
 GROUP_BYTES = 256 << 20  # of pages ``by_bricks`` fills before it computes and gives them back
 BRICK_NODES = 64  # along each axis, where the file is not chunked
+
+
+# -- the table as the step loops read it (inlined into them) --------------------------------
+@inline
+def axis_bricks(size, n, i):
+    """Along an axis of n nodes in bricks of ``size``: (brick, index in it) of node i and of
+    node i + 1 (node 0 after the last on a wrapped axis)."""
+    b0 = i // size
+    l0 = i - b0 * size
+    if l0 + 1 < size and i + 1 < n:
+        return b0, l0, b0, l0 + 1
+    up = i + 1 if i + 1 < n else 0
+    b1 = up // size
+    return b0, l0, b1, up - b1 * size
+
+
+@inline
+def slot_of(bk, bx, by, bz):
+    return bk[B_TABLE + (bx * bk[B_COUNT + 1] + by) * bk[B_COUNT + 2] + bz]
+
+
+@inline
+def missing_brick(bk, i, j, k):
+    """A brick holding a corner of cell (i, j, k) of a bricked field that is not resident (the
+    first found), else -1."""
+    bx0, _, bx1, _ = axis_bricks(bk[B_SIZE], bk[B_NODES], i)
+    by0, _, by1, _ = axis_bricks(bk[B_SIZE + 1], bk[B_NODES + 1], j)
+    bz0, _, bz1, _ = axis_bricks(bk[B_SIZE + 2], bk[B_NODES + 2], k)
+    for d in range(8):
+        bx = bx1 if d & 1 else bx0
+        by = by1 if d & 2 else by0
+        bz = bz1 if d & 4 else bz0
+        if slot_of(bk, bx, by, bz) < 0:
+            return (bx * bk[B_COUNT + 1] + by) * bk[B_COUNT + 2] + bz
+    return -1
 
 
 def brick_nodes(stored, grid) -> np.ndarray:
@@ -49,42 +87,94 @@ class BrickPool:
     bricks resident, the least recently used ones evicted for them.
 
     ``stored``: the vector (a ``stored.Stored``, read a box at a time), on ``grid``; ``size``:
-    nodes per brick along each axis (default ``brick_nodes``)."""
+    nodes per brick along each axis (default ``brick_nodes``).  ``more``: arrays of the same
+    shape read alongside (the next snapshot's vector, for pathlines), each into a pool of its
+    own (``pools``, ``pool`` the first) under the one table: a brick is resident in every pool
+    or in none, in the same slot, and the budget holds them all.  ``dtype``: the pools' type
+    (default ``stored``'s; one that holds every source's values exactly)."""
 
-    def __init__(self, stored, grid, budget: int, size=None):
+    def __init__(self, stored, grid, budget: int, size=None, more=(), dtype=None):
         from .stored import FieldMemoryError, fmt_bytes
 
-        self.stored, self.grid = stored, grid
+        self.sources, self.grid = [stored, *more], grid
+        self.dtype = np.dtype(stored.dtype if dtype is None else dtype)
         self.size = np.array(size if size is not None else brick_nodes(stored, grid), np.int64)
         self.count = -(-np.array(grid.shape, np.int64) // self.size)
         n_bricks = int(np.prod(self.count))
         self.tail = tuple(stored.shape[3:])  # (3,) for a vector, () for a scalar
-        self.slot_bytes = int(np.prod(self.size)) * int(np.prod(self.tail)) * stored.dtype.itemsize
+        # (a slot in every pool)
+        self.slot_bytes = (len(self.sources) * int(np.prod(self.size))
+                           * int(np.prod(self.tail)) * self.dtype.itemsize)
         slots = min(n_bricks, int(POOL_SHARE * budget // self.slot_bytes))
         least = min(MIN_SLOTS, n_bricks)
         if slots < least:
             raise FieldMemoryError(
                 f"{stored.where}: a memory budget of {fmt_bytes(budget)} holds {slots} bricks "
-                f"of {tuple(self.size.tolist())} nodes, a trace needs {least}: give --memory "
-                f"{fmt_bytes(least * self.slot_bytes / POOL_SHARE)} or more")
+                f"of {tuple(self.size.tolist())} nodes{self._times()}, a trace needs {least}: "
+                f"give --memory {fmt_bytes(least * self.slot_bytes / POOL_SHARE)} or more")
         s0, s1, s2 = (int(v) for v in self.size)
-        # in pages of its own, so that ``release`` can give them back
-        self._map = _anonymous(slots * self.slot_bytes)
-        self.pool = np.frombuffer(self._map, stored.dtype).reshape(slots * s0, s1, s2, *self.tail)
+        # in pages of their own, so that ``release`` can give them back
+        self._maps = [_anonymous(slots * self.slot_bytes // len(self.sources))
+                      for _ in self.sources]
+        self.pools = [np.frombuffer(m, self.dtype).reshape(slots * s0, s1, s2, *self.tail)
+                      for m in self._maps]
         self.bk = np.full(B_TABLE + n_bricks, -1, np.int64)
         self.bk[B_SIZE:B_SIZE + 3] = self.size
         self.bk[B_COUNT:B_COUNT + 3] = self.count
         self.bk[B_NODES:B_NODES + 3] = grid.shape
-        self.table = self.bk[B_TABLE:]
+        self.table = self.bk[B_TABLE:]  # (resident: read in every pool)
         self.held = np.full(slots, -1, np.int64)  # the brick in each slot
+        self.valid = np.zeros((len(self.sources), slots), bool)  # which pools hold it yet
         self.used = np.zeros(slots, np.int64)  # when each slot was last asked for
         self.clock = 0
         self.bytes_read = 0
         self.loads = 0
 
+    def _times(self) -> str:
+        n = len(self.sources)
+        return "" if n == 1 else f" in each of {n} snapshots"
+
+    @property
+    def pool(self) -> np.ndarray:
+        return self.pools[0]
+
     @property
     def slots(self) -> int:
         return self.held.size
+
+    @property
+    def nbytes(self) -> int:
+        return sum(p.nbytes for p in self.pools)
+
+    def attrs(self, rounds: int) -> dict:
+        """Lines.attrs entries of a trace read through the pool in ``rounds`` rounds: what was
+        read, and the pool."""
+        return {"bricks_read": self.loads, "field_bytes_read": self.bytes_read,
+                "brick_rounds": rounds, "brick_pool_bytes": self.nbytes}
+
+    def holds(self, sources) -> bool:
+        """Whether the pools can read ``sources`` (one per pool) from now on: their shape, and
+        values the pools' type holds exactly."""
+        return len(sources) == len(self.sources) and all(
+            s.shape == self.sources[0].shape and np.can_cast(s.dtype, self.dtype, "safe")
+            for s in sources)
+
+    def follow(self, sources) -> None:
+        """Read ``sources`` (one per pool, ``holds``) from now on.  A source one of the pools
+        reads already keeps its bricks (that pool moves to the source's place); the others are
+        read, for each brick held, when it is next wanted: from one snapshot interval to the
+        next, the snapshot both share is not read again."""
+        was = [next((i for i, o in enumerate(self.sources) if o is s), None) for s in sources]
+        spare = [i for i in range(len(self.sources)) if i not in was]
+        take = [i if i is not None else spare.pop() for i in was]
+        self._maps = [self._maps[i] for i in take]
+        self.pools = [self.pools[i] for i in take]
+        self.valid = self.valid[take]
+        self.valid[[i is None for i in was]] = False
+        self.sources = list(sources)
+        self.table[:] = -1
+        full = np.flatnonzero((self.held >= 0) & self.valid.all(axis=0))
+        self.table[self.held[full]] = full
 
     def corner_bricks(self, cells: np.ndarray) -> np.ndarray:
         """The bricks holding the corners of each cell (rows of cell indices): (n, 8), -1 in
@@ -114,44 +204,63 @@ class BrickPool:
         missing = ids[here < 0]
         if not missing.size:
             return
+        # bricks held but not yet read from a source that ``follow`` brought: read in place
+        part = np.flatnonzero((self.held >= 0) & ~self.valid.all(axis=0))
+        part = part[np.isin(self.held[part], missing)]
+        missing = missing[~np.isin(missing, self.held[part])]
         keep = np.zeros(self.slots, bool)
         keep[here[here >= 0]] = True
+        keep[part] = True
         free = np.flatnonzero(~keep)
         free = free[np.argsort(self.used[free], kind="stable")][:missing.size]
-        with self.stored.source.held():
-            for brick, slot in zip(missing, free):
+        # (a run of reads shares each file it opens: opening costs as much as a brick)
+        read = range(len(self.sources)) if missing.size else \
+            np.flatnonzero(~self.valid[:, part].all(axis=1))
+        with contextlib.ExitStack() as files:
+            for i in read:
+                files.enter_context(self.sources[i].source.held())
+            for brick, slot in [*zip(self.held[part], part), *zip(missing, free)]:
                 old = self.held[slot]
-                if old >= 0:
-                    self.table[old] = -1
+                if old != brick:
+                    if old >= 0:
+                        self.table[old] = -1
+                    self.valid[:, slot] = False
                 self._read(int(brick), int(slot))
                 self.held[slot] = brick
                 self.table[brick] = slot
                 self.used[slot] = self.clock
 
     def _read(self, brick: int, slot: int) -> None:
-        """Brick ``brick`` into ``slot``: one aligned read (NaN past the grid's ends)."""
+        """Brick ``brick`` into ``slot`` of each pool that does not hold it yet: one aligned read
+        each (NaN past the grid's ends)."""
         b = np.unravel_index(brick, tuple(self.count))
         s0 = int(self.size[0])
-        dst = self.pool[slot * s0:(slot + 1) * s0]
         box = tuple(slice(int(b[a] * self.size[a]), int(min((b[a] + 1) * self.size[a], n)))
                     for a, n in enumerate(self.grid.shape))
         shape = tuple(x.stop - x.start for x in box)
-        if shape == dst.shape[:3]:
-            self.stored.source.fill_box(dst, box)
-        else:  # the last brick of an axis: part of a slot
-            dst[...] = np.nan
-            tmp = np.empty((*shape, *self.tail), dst.dtype)
-            self.stored.source.fill_box(tmp, box)
-            dst[:shape[0], :shape[1], :shape[2]] = tmp
-        self.bytes_read += int(np.prod(shape)) * int(np.prod(self.tail)) * dst.itemsize
-        self.loads += 1
+        for i in np.flatnonzero(~self.valid[:, slot]):
+            dst = self.pools[i][slot * s0:(slot + 1) * s0]
+            source = self.sources[i].source
+            if shape == dst.shape[:3] and self.sources[i].dtype == self.dtype:
+                source.fill_box(dst, box)
+            else:  # the last brick of an axis: part of a slot (or a source of a narrower type)
+                dst[...] = np.nan
+                tmp = np.empty((*shape, *self.tail), self.sources[i].dtype)
+                source.fill_box(tmp, box)
+                dst[:shape[0], :shape[1], :shape[2]] = tmp
+            self.bytes_read += (int(np.prod(shape)) * int(np.prod(self.tail))
+                                * self.sources[i].dtype.itemsize)
+            self.loads += 1
+        self.valid[:, slot] = True
 
     def release(self) -> None:
-        """Every brick evicted and the pool's pages given back (while attributes are sampled
+        """Every brick evicted and the pools' pages given back (while attributes are sampled
         from the file, say); the bricks are read again when next wanted."""
-        self._map.madvise(mmap.MADV_DONTNEED)
+        for m in self._maps:
+            m.madvise(mmap.MADV_DONTNEED)
         self.table[:] = -1
         self.held[:] = -1
+        self.valid[:] = False
 
     def copy_box(self, out: np.ndarray, box: tuple) -> None:
         """out[box] = the nodes of ``box`` (slices along x, y, z, inside the grid), from the
@@ -177,6 +286,24 @@ def read_whole(field, scalar: str | None = None) -> bool:
     if scalar is None:
         return field.vector_in_memory() or field.stored_vector().nbytes <= WHOLE_BYTES
     return field.scalars.in_memory(scalar) or field.scalars.meta(scalar).nbytes <= WHOLE_BYTES
+
+
+def brick_budget(fields, memory: int | None = None) -> float | None:
+    """The memory budget (bytes) within which a trace reads the vectors of ``fields`` (a field,
+    or the two snapshots of a pathline interval) brick by brick, only where its lines go:
+    ``memory``, else the memory free now; None where they are read whole: each in memory
+    already, or small (``read_whole``) with all of them fitting the budget."""
+    from .stored import available_memory
+
+    if all(f.vector_in_memory() for f in fields):
+        return None
+    nbytes = sum(f.stored_vector().nbytes for f in fields)
+    budget = memory if memory is not None else available_memory()
+    if budget is None:  # (nothing says what is free: a slot for every brick)
+        budget = nbytes / POOL_SHARE
+    if nbytes <= POOL_SHARE * budget and all(read_whole(f) for f in fields):
+        return None
+    return budget
 
 
 def cell_nodes(grid, points: np.ndarray) -> np.ndarray:

@@ -112,7 +112,8 @@ def compute(field: Field, names, points, t, s, seeds_per_vertex,
     sampled = [n for n in names if n not in ("time", "arc_length", "distance_to_seed")]
     scalars = [n for n in sampled if n not in ATTRIBUTES]
     whole = read_whole(field) and all(read_whole(field, n) for n in scalars)
-    if sampled and (bricked or not whole):
+    # (no vertex: by_bricks would give no array, and the samplers give empty ones)
+    if sampled and len(points) and (bricked or not whole):
         # every sampled attribute from one read of the bricks near the vertices
         halo = CURL_REACH if any(ATTRIBUTES.get(n) == ("curl",) for n in sampled) else 0
         out = by_bricks(field, points, lambda f, p: compute(f, sampled, p, None, None, None),

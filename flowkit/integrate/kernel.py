@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 
 from .. import compile_notice
-from ..fields.bricks import B_COUNT, B_NODES, B_SIZE, B_TABLE
+from ..fields.bricks import B_NODES, B_SIZE, axis_bricks, missing_brick, slot_of
 from ..fields.interp import locate_axis, prefetch_cell, prefetch_corners
 from ..jit import helper, inline, kernel
 from ..jit import prefetch as _prefetch  # noqa: F401 (lanes.py, benchmarks)
@@ -208,40 +208,6 @@ def _locate_cell(c, period, inv, x):
 
 
 @inline
-def _axis_bricks(size, n, i):
-    """Along an axis of n nodes in bricks of ``size``: (brick, index in it) of node i and of
-    node i + 1 (node 0 after the last on a wrapped axis)."""
-    b0 = i // size
-    l0 = i - b0 * size
-    if l0 + 1 < size and i + 1 < n:
-        return b0, l0, b0, l0 + 1
-    up = i + 1 if i + 1 < n else 0
-    b1 = up // size
-    return b0, l0, b1, up - b1 * size
-
-
-@inline
-def _slot(bk, bx, by, bz):
-    return bk[B_TABLE + (bx * bk[B_COUNT + 1] + by) * bk[B_COUNT + 2] + bz]
-
-
-@inline
-def _brick(bk, i, j, k):
-    """A brick holding a corner of cell (i, j, k) of a bricked field that is not resident (the
-    first found), else -1."""
-    bx0, _, bx1, _ = _axis_bricks(bk[B_SIZE], bk[B_NODES], i)
-    by0, _, by1, _ = _axis_bricks(bk[B_SIZE + 1], bk[B_NODES + 1], j)
-    bz0, _, bz1, _ = _axis_bricks(bk[B_SIZE + 2], bk[B_NODES + 2], k)
-    for d in range(8):
-        bx = bx1 if d & 1 else bx0
-        by = by1 if d & 2 else by0
-        bz = bz1 if d & 4 else bz0
-        if _slot(bk, bx, by, bz) < 0:
-            return (bx * bk[B_COUNT + 1] + by) * bk[B_COUNT + 2] + bz
-    return -1
-
-
-@inline
 def _brick_across(bk, a, up, gx, gy, gz, period, ci):
     """``_brick`` of the cell through ci's face on axis a (-1 also where there is none)."""
     c = gx if a == 0 else (gy if a == 1 else gz)
@@ -251,7 +217,7 @@ def _brick_across(bk, a, up, gx, gy, gz, period, ci):
         if period[a] == 0.0:
             return -1
         i = 0 if i >= n else n - 1
-    return _brick(bk, i if a == 0 else ci[0], i if a == 1 else ci[1], i if a == 2 else ci[2])
+    return missing_brick(bk, i if a == 0 else ci[0], i if a == 1 else ci[1], i if a == 2 else ci[2])
 
 
 @helper
@@ -260,7 +226,7 @@ def _brick_at(bk, gx, gy, gz, period, inv, p):
     i, _, _ = _locate_cell(gx, period[0], inv[0], p[0])
     j, _, _ = _locate_cell(gy, period[1], inv[1], p[1])
     k, _, _ = _locate_cell(gz, period[2], inv[2], p[2])
-    return _brick(bk, i, j, k)
+    return missing_brick(bk, i, j, k)
 
 
 @inline
@@ -284,25 +250,25 @@ def _gather(vec, bk, ci, coef):
         r100 = r110 = r101 = r111 = i1
     else:
         # (no cell: a stage point made of NaN, after a missing brick left NaN in k)
-        missing = _brick(bk, i, j, k) if i >= 0 and j >= 0 and k >= 0 else ci[3]
+        missing = missing_brick(bk, i, j, k) if i >= 0 and j >= 0 and k >= 0 else ci[3]
         if missing >= 0 or i < 0 or j < 0 or k < 0:
             ci[3] = missing
             for m in range(8):
                 for c in range(3):
                     coef[m, c] = np.nan
             return False
-        bx0, l0, bx1, l1 = _axis_bricks(bk[B_SIZE], bk[B_NODES], i)
-        by0, j0, by1, j1 = _axis_bricks(bk[B_SIZE + 1], bk[B_NODES + 1], j)
-        bz0, k0, bz1, k1 = _axis_bricks(bk[B_SIZE + 2], bk[B_NODES + 2], k)
+        bx0, l0, bx1, l1 = axis_bricks(bk[B_SIZE], bk[B_NODES], i)
+        by0, j0, by1, j1 = axis_bricks(bk[B_SIZE + 1], bk[B_NODES + 1], j)
+        bz0, k0, bz1, k1 = axis_bricks(bk[B_SIZE + 2], bk[B_NODES + 2], k)
         size = bk[B_SIZE]
-        r000 = _slot(bk, bx0, by0, bz0) * size + l0
-        r100 = _slot(bk, bx1, by0, bz0) * size + l1
-        r010 = _slot(bk, bx0, by1, bz0) * size + l0
-        r110 = _slot(bk, bx1, by1, bz0) * size + l1
-        r001 = _slot(bk, bx0, by0, bz1) * size + l0
-        r101 = _slot(bk, bx1, by0, bz1) * size + l1
-        r011 = _slot(bk, bx0, by1, bz1) * size + l0
-        r111 = _slot(bk, bx1, by1, bz1) * size + l1
+        r000 = slot_of(bk, bx0, by0, bz0) * size + l0
+        r100 = slot_of(bk, bx1, by0, bz0) * size + l1
+        r010 = slot_of(bk, bx0, by1, bz0) * size + l0
+        r110 = slot_of(bk, bx1, by1, bz0) * size + l1
+        r001 = slot_of(bk, bx0, by0, bz1) * size + l0
+        r101 = slot_of(bk, bx1, by0, bz1) * size + l1
+        r011 = slot_of(bk, bx0, by1, bz1) * size + l0
+        r111 = slot_of(bk, bx1, by1, bz1) * size + l1
     bad = 0.0
     for c in range(3):  # (float64 before any arithmetic: a float32 field gives the same lines)
         v000 = np.float64(vec[r000, j0, k0, c])
@@ -478,7 +444,7 @@ def _stage(ma, mc, k, st, y, hs, yt, tau, param, inc, gx, gy, gz, period, inv, v
     None), the cell the step starts in (``inc``), or the cell holding the point."""
     _stage_point(ma, k, st, y, hs, yt)
     if vb is not None:
-        stage(yt, tau + mc[st] * hs, gx, gy, gz, period, inv, vec, vb, tp, k, st)
+        stage(yt, tau + mc[st] * hs, gx, gy, gz, period, inv, vec, vb, bk, tp, k, st, ci)
     elif inc:
         _fc(yt[0], yt[1], yt[2], param, cf, coef, k, st)
     else:
@@ -882,10 +848,12 @@ def _start(l, slot, seeds, dirs, phases, gx, gy, gz, period, inv, vec, bk, kexp,
 
 
 @helper
-def _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, v0, v1, tp, kexp, fo, sf, si,
-                out_p, out_par, out_n, k, coef, cf, ci, y, yt):
+def _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, v0, v1, bk, tp, kexp, fo, sf,
+                si, out_p, out_par, out_n, k, coef, cf, ci, y, yt):
     """``_start`` for a pathline: released at tp[3 + l] into the field between the snapshots
-    v0 and v1 (at tp[0], tp[1]); its initial step no longer than the time left to tp[2]."""
+    v0 and v1 (at tp[0], tp[1]); its initial step no longer than the time left to tp[2].  False
+    when the seed lies outside the domain or in NaN data (the line is done) or where a brick is
+    not resident (ci[3]: it waits)."""
     d = dirs[l]
     px, py, pz = seeds[l, 0], seeds[l, 1], seeds[l, 2]
     inside = True
@@ -894,10 +862,11 @@ def _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, v0, v1, tp, kexp,
         if period[a] == 0.0 and not (c[0] <= seeds[l, a] <= c[c.size - 1]):
             inside = False
     t = tp[3 + l]
-    if not (inside and velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, tp[0], tp[1], k,
-                                np.int64(0))):
-        si[l, I_STATUS] = DONE
-        si[l, I_REASON] = R_SEED
+    if not (inside and velocity(px, py, pz, t, gx, gy, gz, period, inv, v0, v1, bk, tp[0], tp[1],
+                                k, np.int64(0), ci)):
+        if ci[3] < 0:
+            si[l, I_STATUS] = DONE
+            si[l, I_REASON] = R_SEED
         return False
     y[0], y[1], y[2], y[3] = px, py, pz, 0.0
     hmax = fo[O_HMAX]
@@ -907,8 +876,10 @@ def _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, v0, v1, tp, kexp,
         h0 = min(h0, hmax, max(abs(tp[2] - t), HINIT_MIN_STEP))
         for a in range(3):
             yt[a] = y[a] + d * h0 * k[0, a]
-        ok = velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv, v0, v1, tp[0],
-                      tp[1], k, np.int64(1))
+        ok = velocity(yt[0], yt[1], yt[2], t + d * h0, gx, gy, gz, period, inv, v0, v1, bk, tp[0],
+                      tp[1], k, np.int64(1), ci)
+        if ci[3] >= 0:
+            return False
         h = _initial_step(fo, y, k, h0, d1, kexp, ok)
     h = d * min(h, hmax)
     zero = np.int64(0)
@@ -940,9 +911,10 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
     The field evaluator and the stepper are compile-time choices: numba compiles this loop once
     per type of ``vb`` and ``ros`` and drops the branches of the ones that are None (arrays
     inside a tuple cannot be handed on without NRT).  ``vb``, for pathlines: the snapshot at
-    time tp[1], ``vec`` the one at tp[0]; the field between them (``unsteady.py``; plain
-    stepping, time the parameter ``tau``, absolute); lines start at their release times
-    ``tp[3 + l]`` and stop at tp[2], the end of the interval, to go on in the next one.
+    time tp[1], ``vec`` the one at tp[0] (bricked: the two snapshots' pools, ``bk`` the table
+    of both); the field between them (``unsteady.py``; plain stepping, time the parameter
+    ``tau``, absolute); lines start at their release times ``tp[3 + l]`` and stop at tp[2], the
+    end of the interval, to go on in the next one.
     ``ros``: the Rosenbrock stepper's table (``rosenbrock.table``), for the lines with
     si[l, I_ROS] set: from their seeds (io[P_ROS]), or from the step where the explicit
     stepper's stiffness test flags them (``auto``); cell-aware, never across faces, with the
@@ -994,8 +966,8 @@ def _advance_lines(start, stop, active, seeds, dirs, spacings, phases, gx, gy, g
                                  yt, dlo, dhi)
             else:
                 started = _start_path(l, slot, seeds, dirs, gx, gy, gz, period, inv, vec,
-                                      vb, tp, kexp, fo, sf, si, out_p, out_par, out_n, k, coef,
-                                      cf, ci, y, yt)
+                                      vb, bk, tp, kexp, fo, sf, si, out_p, out_par, out_n, k,
+                                      coef, cf, ci, y, yt)
             if not started:
                 si[l, I_WAIT] = ci[3] + 1
                 continue

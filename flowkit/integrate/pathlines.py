@@ -3,13 +3,20 @@
 The velocity between two snapshots at times t_k < t_k+1 is interpolated linearly in time,
 ``v(x, t) = (1 - a) v_k(x) + a v_k+1(x)`` with ``a = (t - t_k) / (t_k+1 - t_k)``, and trilinearly in
 space (``flowkit.fields.interp``).  The driver walks the snapshot intervals in time order
-(reverse order for ``direction="backward"``) holding at most two snapshots in memory: snapshot
-k is dropped before snapshot k+2 is loaded.  In each interval the tracing kernel's step loop
+(reverse order for ``direction="backward"``) holding at most two snapshots: snapshot k is dropped
+before snapshot k+2 is loaded.  In each interval the tracing kernel's step loop
 (``kernel._advance_lines``, with the field between the two snapshots as its evaluator:
 ``unsteady.py``) advances every line with an explicit Runge–Kutta method from the method
 registry: dopri5 by default, adaptive with its dense output, or at fixed steps (rk4, euler:
 ``step``, by default half the time to cross the smallest cell at the typical speed); steps are
 clipped to the interval end because the interpolated field has a kink in time there.
+
+Snapshots whose vectors are stored in files are read as streamlines read a field: brick by
+brick within the memory budget (``TraceOptions.memory``, ``bricks.brick_budget``), only where
+the lines go.  One pool of slots holds the bricks of both snapshots of an interval under one
+table (``bricks.BrickPool`` with two sources), the lines advance in rounds (``rounds.py``), and
+from one interval to the next the snapshot both share keeps its bricks.  The lines, reasons and
+attributes are those read whole, bit for bit.
 
 Seeds are released at given times (default: the start of the series, its end when backward).
 Every line records why it stopped: ``out_of_domain`` (the last vertex ON the boundary, found on
@@ -27,29 +34,32 @@ from pathlib import Path
 import numpy as np
 
 from ..fields import Field
-from ..fields.bricks import NO_BRICKS
+from ..fields.bricks import NO_BRICKS, BrickPool, brick_budget, cell_nodes
 from ..lines import Lines
 from ..threads import run_ranges
 from . import attributes as _attributes
 from . import kernel as K
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES, Reason
+from .rounds import Rounds, serve
 from .trace import typical_speed
 
 POINT_ATTRIBUTES = ("time", "arc_length", "speed", "velocity", "vorticity", "vorticity_magnitude",
                     "distance_to_seed")
+SAMPLED = ("speed", "velocity", "vorticity", "vorticity_magnitude")  # (and scalars)
 BUFFER_VERTICES = 1 << 22  # vertices held by one kernel launch (all lines together)
 R_SEED, R_LEFT = int(Reason.SEED_OUTSIDE), int(Reason.LEFT_TIME_RANGE)
 
 
-def _advance(active, seeds, dirs, release, goal, grid, v0, v1, t0, t1, method, fo, io, sf,
+def _advance(active, seeds, dirs, release, goal, grid, v0, v1, bk, t0, t1, method, fo, io, sf,
              si, out_p, out_par, out_n):
     """Advance the lines ``active`` to ``goal`` (or their end) inside one snapshot interval, or
-    until each has written B vertices: the streamline step loop with the field between two
-    snapshots (``kernel._advance_lines``' ``path``), the lines shared among numba's threads."""
+    until each has written B vertices or waits for a brick: the streamline step loop with the
+    field between two snapshots (``kernel._advance_lines``' ``vb``), the lines shared among
+    numba's threads."""
     none = np.zeros(seeds.shape[0])
     run_ranges(K._advance_range, active.size, active, seeds, dirs, none, none, *grid, v0,
-               NO_BRICKS, *method, fo, io, sf, si, out_p, out_par, out_n, v1,
+               bk, *method, fo, io, sf, si, out_p, out_par, out_n, v1,
                np.concatenate([[t0, t1, goal], release]), None)
 
 
@@ -61,13 +71,16 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
 
     ``series``: a ``.series`` file, glob or multi-snapshot HDF5 path (``load_series``), or a list of
     ``(time, Field | path | SnapshotRef)`` with at least two distinct times.  Snapshots are loaded
-    as the sweep reaches them and dropped when it has passed them (at most two in memory).
-    ``vector`` names the vector array of snapshot files; ``load``: load_field's other keywords for
-    them (a mesh's ``resample=``, ``data=``).  ``options``/``kw``: TraceOptions (method, rtol, atol, max_time = duration since release,
-    max_length, max_steps, step, min_step, max_step, stagnation, direction forward|backward,
-    attributes among time, arc_length, speed, velocity, vorticity, vorticity_magnitude,
-    distance_to_seed and scalar names; velocity, vorticity and scalars interpolated linearly in
-    time between the two snapshots around each vertex).
+    as the sweep reaches them and dropped when it has passed them (at most two held: in
+    memory, or a large file's bricks where the lines go, within ``memory``).  ``vector`` names
+    the vector array of snapshot files; ``load``: load_field's other keywords for them (a mesh's
+    ``resample=``, ``data=``).  ``options``/``kw``: TraceOptions (method, rtol, atol, max_time =
+    duration since release, max_length, max_steps, step, min_step, max_step, stagnation,
+    direction forward|backward, memory, attributes among time, arc_length, speed, velocity,
+    vorticity, vorticity_magnitude, distance_to_seed and scalar names; velocity, vorticity and
+    scalars interpolated linearly in time between the two snapshots around each vertex).
+    Snapshots read brick by brick add ``bricks_read``, ``field_bytes_read``, ``brick_rounds``
+    and ``brick_pool_bytes`` to the attrs (over the whole sweep).
     """
     opts = _check_options(options if options is not None else TraceOptions(), kw)
     times, sources = _series(series)
@@ -85,11 +98,12 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
     dirs = np.full(n, d)
     sf = np.zeros((n, K.NF))
     si = np.zeros((n, K.NI), np.int64)
-    chunks = []  # (owner, points, time, arc length, attributes) per launch
+    chunks = []  # (owner, points, time, arc length, attributes) per interval
     method = opts.method_obj
     arrays = method.kernel_arrays()
     held: dict[int, Field] = {}
-    setup = fa = fb = None
+    setup = fa = fb = pool = None
+    n_rounds = 0
     for k in order:
         fa = fb = None  # no reference may keep a passed snapshot alive
         for old in [i for i in held if i not in (k, k + 1)]:
@@ -109,26 +123,83 @@ def pathlines(series, seeds, release=None, options: TraceOptions | None = None, 
         else:
             starts = (release <= tb) & ((release > ta) | ((release == ta) & (k == 0)))
         active = np.flatnonzero((status == K.RUNNING) | ((status == K.NEW) & starts))
-        v0, v1 = _alike(fa.vector, fb.vector)
-        while active.size:
-            B = int(min(4096, max(16, BUFFER_VERTICES // active.size)))
-            out_p = np.empty((active.size, B, 3))
-            out_par = np.empty((active.size, B, 2))
-            out_n = np.zeros(active.size, np.int64)
-            _advance(active, seeds, dirs, release, goal, setup.grid, v0, v1, ta, tb, arrays,
-                     setup.fo, setup.io, sf, si, out_p, out_par, out_n)
-            keep = np.arange(B)[None, :] < out_n[:, None]
-            owner = np.repeat(active, out_n)
-            pts, tv = out_p[keep], out_par[:, :, 0][keep]
-            chunks.append((owner, pts, tv, out_par[:, :, 1][keep],
-                           _sampled(opts.attributes, fa, fb, ta, tb, pts, tv)))
-            busy = (si[active, K.I_STATUS] == K.RUNNING) & (sf[active, K.S_TAU] != goal)
-            active = active[busy]
-        v0 = v1 = None
+        pool = _bricks(pool, fa, fb, opts.memory)
+        if pool is None:
+            v0, v1, bk, rounds = *_alike(fa.vector, fb.vector), NO_BRICKS, None
+        else:
+            v0, v1, bk = *pool.pools, pool.bk
+            rounds = Rounds(pool, n, cells=_cells(fa.grid, seeds, sf))
+        run = _Pass(seeds, dirs, release, goal, setup, v0, v1, bk, ta, tb, arrays, sf, si)
+        parts = []
+        for got, _, was_round in serve(active, si, run, rounds):
+            parts.append(got)
+            n_rounds += was_round
+        v0 = v1 = run = None
+        vertices = [np.concatenate(c) for c in zip(*parts)]
+        if vertices and vertices[0].size:  # with their attributes, from the two snapshots
+            owner, pts, tv, sv = vertices
+            if pool is not None and opts.attributes:
+                pool.release()  # (its pages back while they read near the vertices)
+            chunks.append((owner, pts, tv, sv, _sampled(opts.attributes, fa, fb, ta, tb, pts, tv,
+                                                         pool is not None)))
     still = si[:, K.I_STATUS]
     si[still == K.RUNNING, K.I_REASON] = R_LEFT
     si[still == K.NEW, K.I_REASON] = R_SEED  # released outside the time range
-    return _assemble(chunks, n, seeds, release, si, opts, times, sources, fa)
+    lines = _assemble(chunks, n, seeds, release, si, opts, times, sources, fa)
+    if pool is not None:
+        lines.attrs.update(pool.attrs(n_rounds))
+    return lines
+
+
+class _Pass:
+    """One pass of an interval's lines ``ready`` (``rounds.serve``): their vertices (owner,
+    points, time, arc length) and which of them have more to do in the interval (running short
+    of its end, or waiting for a brick)."""
+
+    def __init__(self, seeds, dirs, release, goal, setup, v0, v1, bk, ta, tb, method, sf, si):
+        self.args = (seeds, dirs, release, goal, setup.grid, v0, v1, bk, ta, tb, method,
+                     setup.fo, setup.io, sf, si)
+        self.goal, self.sf, self.si = goal, sf, si
+
+    def __call__(self, ready):
+        B = int(min(4096, max(16, BUFFER_VERTICES // ready.size)))
+        out_p = np.empty((ready.size, B, 3))
+        out_par = np.empty((ready.size, B, 2))
+        out_n = np.zeros(ready.size, np.int64)
+        _advance(ready, *self.args, out_p, out_par, out_n)
+        keep = np.arange(B)[None, :] < out_n[:, None]
+        got = np.repeat(ready, out_n), out_p[keep], out_par[:, :, 0][keep], out_par[:, :, 1][keep]
+        si = self.si[ready]
+        busy = (((si[:, K.I_STATUS] == K.RUNNING) & (self.sf[ready, K.S_TAU] != self.goal))
+                | (si[:, K.I_WAIT] > 0))
+        return got, busy
+
+
+def _bricks(pool, fa: Field, fb: Field, memory):
+    """The BrickPool an interval reads the vectors of its snapshots ``fa`` and ``fb`` through
+    (``pool``, the last interval's, where it can follow them), or None where both are read
+    whole (``bricks.brick_budget``)."""
+    budget = brick_budget((fa, fb), memory)
+    if budget is None:
+        return None
+    sources = [fa.stored_vector(), fb.stored_vector()]
+    if pool is not None and pool.holds(sources):
+        pool.follow(sources)
+        return pool
+    new = BrickPool(sources[0], fa.grid, budget, more=sources[1:],
+                    dtype=np.result_type(*(s.dtype for s in sources)))
+    if pool is not None:  # (what the last pool read: counted over the whole sweep)
+        new.loads, new.bytes_read = pool.loads, pool.bytes_read
+    return new
+
+
+def _cells(grid, seeds, sf):
+    """``Rounds``' cells of pathlines (``cells(rows, si)``): the cell holding each line's point,
+    its seed before it starts (the step loop keeps no cell for them)."""
+    def cells(rows, si):
+        running = (si[rows, K.I_STATUS] == K.RUNNING)[:, None]
+        return cell_nodes(grid, np.where(running, sf[rows, K.S_Y:K.S_Y + 3], seeds[rows]))
+    return cells
 
 
 def _check_options(opts: TraceOptions, kw) -> TraceOptions:
@@ -221,21 +292,22 @@ class _Setup:
                              f"snapshot's {self.shape}; pathlines need one grid for the series")
 
 
-def _sampled(names, fa: Field, fb: Field, ta, tb, pts, tv) -> dict:
-    """Attributes that need the field at the vertices, interpolated in time like the velocity
-    (the vorticity: each snapshot's, from its node curl at the vertices' cells)."""
+def _sampled(names, fa: Field, fb: Field, ta, tb, pts, tv, bricked=False) -> dict:
+    """Attributes that need the field at the vertices (the velocity, for speed too; the
+    vorticity, each snapshot's node curl at the vertices' cells; scalars), each snapshot's
+    interpolated in time like the velocity.  Read near the vertices only where ``bricked`` or
+    a snapshot is large (``attributes.compute``)."""
+    want = list(dict.fromkeys({"speed": "velocity", "vorticity_magnitude": "vorticity"}.get(n, n)
+                              for n in names if n in SAMPLED or n in fa.scalars))
+    if not want:
+        return {}
+    a = (tv - ta) / (tb - ta)
+    at_a = _attributes.compute(fa, want, pts, None, None, None, bricked)
+    at_b = _attributes.compute(fb, want, pts, None, None, None, bricked)
     out = {}
-    a = ((tv - ta) / (tb - ta))
-    for name in names:
-        if name in ("speed", "velocity"):
-            if "velocity" not in out:
-                out["velocity"] = (1 - a)[:, None] * fa.sample(pts)[0] + a[:, None] * fb.sample(pts)[0]
-        elif name in ("vorticity", "vorticity_magnitude"):
-            if "vorticity" not in out:
-                wa, wb = _attributes.vorticity_at(fa, pts), _attributes.vorticity_at(fb, pts)
-                out["vorticity"] = (1 - a)[:, None] * wa + a[:, None] * wb
-        elif name in fa.scalars:
-            out[name] = (1 - a) * fa.sample_scalar(name, pts)[0] + a * fb.sample_scalar(name, pts)[0]
+    for name in want:
+        w = a.reshape((-1,) + (1,) * (at_a[name].ndim - 1))
+        out[name] = (1 - w) * at_a[name] + w * at_b[name]
     return out
 
 

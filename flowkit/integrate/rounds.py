@@ -44,16 +44,25 @@ def blocks_of(bricks: np.ndarray, count, span) -> np.ndarray:
     return np.ravel_multi_index(tuple(i // s for i, s in zip(ijk, span)), tuple(blocks))
 
 
+def running_cells(rows: np.ndarray, si: np.ndarray) -> np.ndarray:
+    """The cell each of the tasks ``rows`` stands in, as the step loop keeps it in ``si``
+    (-1 where it has none: a line not started)."""
+    return np.where((si[rows, S.I_STATUS] == S.RUNNING)[:, None],
+                    si[rows, S.I_CELL:S.I_CELL + 3], -1)
+
+
 class Rounds:
     """The scheduler of a bricked trace of ``n`` tasks reading ``pool`` (a BrickPool), in
-    blocks of ``span`` bricks (default ``block_span``)."""
+    blocks of ``span`` bricks (default ``block_span``); ``cells(rows, si)``: the cell each of
+    the tasks ``rows`` stands in (default ``running_cells``)."""
 
-    def __init__(self, pool, n: int, span=None):
+    def __init__(self, pool, n: int, span=None, cells=running_cells):
         self.pool = pool
         self.wanted = np.full((n, WANTED), -1, np.int64)
         self.cell = np.full((n, 3), -1, np.int64)  # each line's cell when it last waited
         self.span = block_span(pool.count, pool.slots) if span is None else np.asarray(span)
         self.blocks = -(-pool.count // self.span)
+        self.cells = cells
 
     def block_of(self, bricks: np.ndarray) -> np.ndarray:
         return blocks_of(bricks, self.pool.count, self.span)
@@ -67,8 +76,7 @@ class Rounds:
         if not waiting.any():
             return active
         rows, wait = active[waiting], wait[waiting]
-        cells = np.where((si[rows, S.I_STATUS] == S.RUNNING)[:, None],
-                         si[rows, S.I_CELL:S.I_CELL + 3], -1)
+        cells = self.cells(rows, si)
         moved = np.any(cells != self.cell[rows], axis=1)
         self.wanted[rows[moved]] = -1
         self.cell[rows] = cells
@@ -89,6 +97,21 @@ class Rounds:
         self.pool.load(bricks[bricks >= 0])
         ok = np.all((need[pick] < 0) | self.pool.resident(np.maximum(need[pick], 0)), axis=1)
         return np.concatenate([active[~waiting], rows[pick[ok]]])
+
+
+def serve(active: np.ndarray, si: np.ndarray, run, rounds: Rounds | None = None, owned=None):
+    """Passes until every task of ``active`` is done: each pass runs ``run(ready)`` on the tasks
+    ``rounds.ready`` gives (all of them without ``rounds``), which returns (what the pass gave,
+    which of ``ready`` have more to do); with ``owned``, until every task left waits for a
+    block served elsewhere.  Yields (what the pass gave, the number of tasks left, whether the
+    pass was a round)."""
+    while active.size:
+        ready = active if rounds is None else rounds.ready(active, si, owned)
+        if not ready.size:  # every task left waits for a block served elsewhere
+            return
+        got, busy = run(ready)
+        active = active[busy] if ready is active else np.setdiff1d(active, ready[~busy])
+        yield got, active.size, ready is not active
 
 
 def _within(need: np.ndarray, slots: int) -> np.ndarray:

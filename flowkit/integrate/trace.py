@@ -16,8 +16,7 @@ import weakref
 import numpy as np
 
 from ..fields import Field
-from ..fields import stored as _stored
-from ..fields.bricks import POOL_SHARE, BrickPool, read_whole
+from ..fields.bricks import POOL_SHARE, BrickPool, brick_budget
 from ..fields.stored import FieldMemoryError, fmt_bytes
 from ..lines import Lines
 from . import attributes as _attributes
@@ -27,7 +26,7 @@ from .launch import FieldArrays, Launch, MethodArrays
 from .methods import get_method
 from .options import OptionsError, TraceOptions
 from .reasons import REASON_NAMES
-from .rounds import Rounds
+from .rounds import Rounds, serve
 from .stiffness import STIFF_BIT
 
 BUFFER_BYTES = 32 << 20  # output buffer of one pass: (tasks, budget) vertices of 40 bytes
@@ -354,15 +353,14 @@ class Setup:
         ``rounds`` (a Rounds) and ``owned`` (its blocks this process serves), waits for a brick
         of a block it does not own; yields each pass's vertices, attribute columns and the
         number of tasks left."""
-        while active.size:
-            ready = active if rounds is None else rounds.ready(active, si, owned)
-            if not ready.size:  # every line left waits for a block served elsewhere
-                return
-            self.rounds += 0 if rounds is None or ready is active else 1
+        def run(ready):
             part, cols, busy = self.advance_pass(ready, seeds, dirs, spacing, phase, io, sf, si,
                                                  out)
-            active = active[busy] if ready is active else np.setdiff1d(active, ready[~busy])
-            yield part, cols, active.size
+            return (part, cols), busy
+
+        for (part, cols), left, was_round in serve(active, si, run, rounds, owned):
+            self.rounds += was_round
+            yield part, cols, left
 
     def run(self, seeds, dirs, emit, spacing, phase, budget):
         """Run tasks to completion; returns (points, t, s, owner, si) with vertices grouped by
@@ -405,12 +403,7 @@ class Setup:
 
     def reads(self) -> dict:
         """Lines.attrs entries of a field read brick by brick: what was read, and the pool."""
-        b = self.bricks
-        if b is None:
-            return {}
-        return {"bricks_read": b.loads, "field_bytes_read": b.bytes_read,
-                "brick_rounds": self.rounds,
-                "brick_pool_bytes": b.pool.nbytes}
+        return {} if self.bricks is None else self.bricks.attrs(self.rounds)
 
     @property
     def path(self) -> str:
@@ -440,16 +433,13 @@ def unfinished(si) -> np.ndarray:
 
 def brick_pool(field: Field, opts: TraceOptions, backend="numba"):
     """The BrickPool a trace reads ``field``'s vector through (brick by brick, only where lines
-    go, within the budget ``opts.memory``, else the memory free now), or None where the vector
-    is in memory already or is read whole: small, or fitting the budget where the method or
-    backend cannot read bricks."""
-    if field.vector_in_memory():
+    go, within ``bricks.brick_budget``), or None where the vector is in memory already or is
+    read whole: small, or fitting the budget where the method or backend cannot read bricks."""
+    budget = brick_budget([field], opts.memory)
+    if budget is None:
         return None
     stored = field.stored_vector()
-    budget = opts.memory if opts.memory is not None else _stored.available_memory()
-    fits = budget is None or stored.nbytes <= POOL_SHARE * budget
-    if fits and read_whole(field):
-        return None
+    fits = stored.nbytes <= POOL_SHARE * budget
     entry = opts.entry
     # (a plain line that switches to the Rosenbrock stepper locates its cell afresh, at a
     # point whose brick need not be resident: auto goes brick by brick cell-aware only)
