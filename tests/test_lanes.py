@@ -334,7 +334,10 @@ def test_eligible_only_where_it_applies():
     assert ok(method="euler")
     assert ok(method="dopri5", step=None)  # adaptive: per-lane steps
     assert ok(method="dop853", step=None)  # the most stages before f(y1)
-    assert ok(method="auto", step=None)  # with the stiffness test
+    # auto's lines may switch to the Rosenbrock stepper, which only the scalar kernel holds
+    lines = trace(ABCFlow().to_field(16), np.full((4, 3), 1.0), method="auto", cell_aware=False,
+                  max_length=1.0)
+    assert lines.attrs["kernel_path"] == "numba scalar: the Rosenbrock stepper"
     assert not ok(cell_aware=True) and reasons[-1] == "cell-aware stepping"
     assert not ok(spacing=0.05) and reasons[-1] == "resampled output"  # the dense output
     periodic = ABCFlow().to_field(16, bounds=[[0.0, 2 * np.pi]] * 3)
