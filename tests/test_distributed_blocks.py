@@ -51,8 +51,10 @@ CASES = {
                          "attributes": ["speed", "velocity", "vorticity", "T", "arc_length",
                                         "distance_to_seed"]},
     "backward, resampled": {"max_length": 6.0, "direction": "backward", "count": 30},
-    # a pool of 14 bricks of 27: lines wait for bricks outside the pool as well as the block
-    "small pool": {"max_length": 10.0, "direction": "both", "memory": "110kB"},
+    # a pool of 14 bricks of 27: lines wait for bricks outside the pool as well as the block;
+    # the vorticity's boxes span more bricks than it holds (sampled through a pool of its own)
+    "small pool": {"max_length": 10.0, "direction": "both", "memory": "110kB",
+                   "attributes": ["vorticity"]},
 }
 
 
@@ -78,6 +80,45 @@ def test_a_nan_hole_across_a_block_face(client, tmp_path):
     _same_lines_and_attrs(whole, got)
     reasons = np.concatenate([got.line_data["reason"], got.line_data["reason_backward"]])
     assert np.count_nonzero(reasons == 6) >= 5  # (6: a NaN node)
+
+
+def test_attributes_are_sampled_by_the_block_owners(client, tmp_path, monkeypatch):
+    """Seeds at the face between the 2 blocks (x node 16: bricks of 8, 2 bricks per block along
+    x), one owner each: every attribute read from the field is sampled on the workers (the
+    client's compute is refused them), the vorticity of vertices within the curl's reach of
+    the face from nodes of both blocks; all equal the serial trace's, bit for bit."""
+    from flowkit.fields.curl import CURL_REACH
+    from flowkit.integrate import attributes
+
+    path = _abc_file(tmp_path / "abc.h5")
+    h = L / 23
+    seeds = np.random.default_rng(5).random((40, 3)) * [2 * h, L, L] + [15 * h, 0, 0]
+    kw = {"max_length": 6.0, "direction": "both",
+          "attributes": ["vorticity", "vorticity_magnitude", "velocity", "T", "time",
+                         "distance_to_seed"]}
+    whole = trace(load_field(path), seeds, **kw)
+    compute = attributes.compute
+
+    def on_the_client(field, names, *a, **k):
+        assert not attributes.from_field(names), f"the client computed {names}"
+        return compute(field, names, *a, **k)
+
+    monkeypatch.setattr(attributes, "compute", on_the_client)
+    t = {}
+    got = read_lines(trace_distributed(path, seeds, tmp_path / "b.h5", client=client,
+                                       distribute="blocks", position_dtype="float64",
+                                       timings=t, balance=False, **kw)[0])
+    _same_lines_and_attrs(whole, got)
+    assert t["block_bricks"] == "2 3 3" and t["handoffs_per_line"] > 0
+    # both owners sampled the vertices they emitted: every vertex, the seed of each line twice
+    per_worker = np.sum([r["worker_vertices"] for r in t["rounds"]], axis=0)
+    assert per_worker.min() > 0 and per_worker.sum() == got.n_points + len(got)
+    assert all(s > 0 for r in t["rounds"] for s, v in zip(r["worker_attribute_s"],
+                                                          r["worker_vertices"]) if v)
+    near = np.abs(got.points[:, 0] / h - 16) < CURL_REACH
+    below = near & (got.points[:, 0] < 16 * h)
+    assert below.sum() > 20 and (near & ~below).sum() > 20
+    assert np.isfinite(got.point_data["vorticity"][near]).all()
 
 
 def test_periodic_axes(client, tmp_path):

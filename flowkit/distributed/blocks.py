@@ -13,9 +13,13 @@ trace's own passes (``Setup.passes``) on them until each line has ended or waits
 of a block it does not own, and sends back the states, the vertices they emitted and (in
 ``si``) the bricks they wait for.  The kernel suspends a line that meets a brick not resident
 at the start of its step and takes the same step again once it is there, so the lines are those
-of one process, bit for bit, wherever they ran.  The client keeps the vertices; the lines are
-assembled in seed order by the trace's own code (``trace_to_file``, through the atomic
-writer): attributes are computed there, from the bricks near the vertices.
+of one process, bit for bit, wherever they ran.  The worker also samples the attributes read
+from the field (velocity, vorticity, scalars) at the vertices it emitted, by the trace's own
+``attributes.compute`` through its pool (a vertex's curl may reach into another worker's block:
+those few bricks are read too), and sends them with the vertices: the client never reads the
+field for them.  The client keeps the vertices; the lines are assembled in seed order by the
+trace's own code (``trace_to_file``, through the atomic writer), with time, arc length and the
+distance to the seed, which need no field.
 
 Load balance, as Viskores does it: where one worker holds most of a round's lines (a plume, a
 vortex: seeds all in one block; a worker whose blocks hold more of the field), its most crowded
@@ -39,9 +43,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fields.bricks import MIN_SLOTS, POOL_SHARE, BrickPool, brick_nodes, bricks_of, cell_nodes
+from ..fields.bricks import (
+    GROUP_BYTES,
+    MIN_SLOTS,
+    POOL_SHARE,
+    BrickPool,
+    brick_nodes,
+    bricks_of,
+    cell_nodes,
+)
 from ..fields.stored import fmt_bytes
 from ..integrate import schema as S
+from ..integrate.attributes import check, compute, from_field
 from ..integrate.options import TraceOptions
 from ..integrate.rounds import WANTED, Rounds, block_span, blocks_of
 from ..integrate.trace import pass_budget, trace_to_file, typical_speed, unfinished
@@ -184,6 +197,7 @@ _SETUPS_LOCK = threading.Lock()
 
 
 def _setup(job: Job):
+    """(Setup, lock, field) of the job on this worker."""
     from ..integrate.trace import Setup
 
     with _SETUPS_LOCK:
@@ -193,7 +207,7 @@ def _setup(job: Job):
             field = open_field(job.source, job.vector, job.load)
             pool = _Pool(field.stored_vector(), field.grid, job.budget, job.size)
             got = _SETUPS[job.key] = (Setup(field, job.options, "numba", pool, job.speed),
-                                      threading.Lock())
+                                      threading.Lock(), field)
     return got
 
 
@@ -214,7 +228,7 @@ def advance(job: Job, owned: np.ndarray, emit: int, batch: Batch) -> dict:
     worker = _worker_name()
     mine = np.flatnonzero(owned)
     try:
-        setup, lock = _setup(job)
+        setup, lock, field = _setup(job)
     except Exception as e:  # noqa: BLE001 (whatever opening raised, named in one line)
         raise BlockError(f"worker {worker}: blocks {_ranges(mine)} of {where}: cannot open the "
                          f"field: {_one_line(e)}") from None
@@ -227,29 +241,44 @@ def advance(job: Job, owned: np.ndarray, emit: int, batch: Batch) -> dict:
         rounds.wanted[:], rounds.cell[:] = batch.wanted, batch.cell
         io = setup.tasks(0, emit)[0]
         out = setup.buffers(n, pass_budget(n, emit, job.options.budget))
-        parts = []
+        parts, point_data, sampling = [], {}, False
+        names = from_field(job.options.attributes) if emit != S.EMIT_FINAL else []
         try:
             for part, _, _ in setup.passes(np.arange(n, dtype=np.int64), batch.seeds,
                                            batch.dirs, batch.spacing, batch.phase, io, sf, si,
                                            out, rounds, owned):
                 parts.append(part)
+            pts, t, s, owner = (np.concatenate(c) for c in zip(*parts)) if parts else (
+                np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64))
+            t1, sampling = time.perf_counter(), True
+            if names and pts.shape[0]:
+                # the attributes read from the field, here: the client never reads it; through
+                # this worker's pool, whose bricks are those near most of these vertices
+                point_data = compute(field, names, pts, None, None, None, bricked=True,
+                                     pool=pool, budget=_attribute_budget(job.budget))
         except Exception as e:
-            brick = pool.reading
-            if brick < 0:
+            brick, pool.reading = pool.reading, -1
+            if brick >= 0:
+                block = int(blocks_of(np.array([brick]), pool.count, job.span)[0])
+                raise BlockError(f"worker {worker}: block {block} (brick {brick}) of {where} "
+                                 f"failed to load: {_one_line(e)}") from None
+            if not sampling:
                 raise
-            pool.reading = -1
-            block = int(blocks_of(np.array([brick]), pool.count, job.span)[0])
-            raise BlockError(f"worker {worker}: block {block} (brick {brick}) of {where} failed "
-                             f"to load: {_one_line(e)}") from None
+            raise BlockError(f"worker {worker}: blocks {_ranges(mine)} of {where}: attributes "
+                             f"{', '.join(names)} failed: {_one_line(e)}") from None
         loads, read = pool.loads - loads, pool.bytes_read - read
         paths = sorted(setup.paths)
-    pts, t, s, owner = (np.concatenate(c) for c in zip(*parts)) if parts else (
-        np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64))
     return {"rows": batch.rows, "sf": sf, "si": si, "wanted": rounds.wanted, "cell": rounds.cell,
             "left": unfinished(si), "points": pts, "t": t, "s": s, "owner": batch.rows[owner],
-            "worker": worker, "seconds": time.perf_counter() - t0,
-            "cpu_s": time.thread_time() - cpu0, "loads": loads,
-            "bytes_read": read, "paths": paths}
+            "point_data": point_data, "worker": worker, "seconds": time.perf_counter() - t0,
+            "attribute_s": time.perf_counter() - t1, "cpu_s": time.thread_time() - cpu0,
+            "loads": loads, "bytes_read": read, "paths": paths}
+
+
+def _attribute_budget(pool_budget: int) -> int:
+    """Bytes of the nodes ``by_bricks`` copies at once on a worker: a quarter of its pool's
+    budget (the pool stays for the next round, beside them), at most ``GROUP_BYTES``."""
+    return max(1 << 20, min(GROUP_BYTES, pool_budget // 4))
 
 
 def _one_line(e: Exception) -> str:
@@ -266,7 +295,7 @@ class BlockRun:
     """What ``trace_to_file`` runs the passes of a batch with (in place of a Setup): rounds of
     block tasks on the cluster.  ``reads()`` gives the job's counts for the lines' attrs."""
 
-    point_data = None  # (attributes are computed from the field after the trace)
+    point_data = None  # the last run's attributes read from the field, sampled by the workers
 
     def __init__(self, client, field, source, vector, opts: TraceOptions, why: str,
                  retries: int = 2, budget: int | None = None, load=None,
@@ -275,6 +304,7 @@ class BlockRun:
         if entry.explicit is None or entry.retrace is not None:
             raise ValueError(f"method {entry.name}: block mode runs the explicit methods (a field "
                              f"read brick by brick)")
+        check(field, opts.attributes)  # (here, not on every worker)
         self.client, self.retries, self.why = client, retries, why
         self.addrs = sorted(client.scheduler_info()["workers"])
         if not self.addrs:
@@ -302,7 +332,7 @@ class BlockRun:
         wanted, cell = np.full((n, WANTED), -1, np.int64), np.full((n, 3), -1, np.int64)
         block = self.layout.blocks_of_points(seeds)
         live = np.arange(n, dtype=np.int64)
-        chunks = []
+        chunks, sampled = [], []
         self.stats["lines"] += n
         while live.size:
             results = self._round(live, block[live], emit, Batch(
@@ -312,12 +342,17 @@ class BlockRun:
                 rows = r["rows"]
                 sf[rows], si[rows], wanted[rows], cell[rows] = r["sf"], r["si"], r["wanted"], r["cell"]
                 chunks.append((r["points"], r["t"], r["s"], r["owner"]))
+                sampled.append(r["point_data"])
             live = live[unfinished(si[live])]
             block[live] = self.layout.blocks_of_bricks(si[live, S.I_WAIT] - 1)
             if np.any(si[live, S.I_WAIT] <= 0):  # (a worker returns a line only when it waits)
                 raise RuntimeError("a block task returned a line that waits for no brick")
         pts, t, s, owner = (np.concatenate(c) for c in zip(*chunks))
         order = np.argsort(owner, kind="stable")  # rounds in order: each line's vertices in order
+        # (a task that emitted no vertex sampled nothing)
+        names = next((list(d) for d in sampled if d), [])
+        self.point_data = {k: np.concatenate([d[k] for d in sampled if d])[order]
+                           for k in names} or None
         return pts[order], t[order], s[order], owner[order], si
 
     def _round(self, rows, block, emit, batch: Batch) -> list[dict]:
@@ -360,12 +395,17 @@ class BlockRun:
         for r in results:
             self.paths.update(r["paths"])
         # each worker's time in its task (one task each), and the CPU it got in it
-        seconds, cpu = np.zeros((2, len(self.addrs)))
+        seconds, cpu, sampling = np.zeros((3, len(self.addrs)))
+        vertices = np.zeros(len(self.addrs), np.int64)
         seconds[ws], cpu[ws] = [r["seconds"] for r in results], [r["cpu_s"] for r in results]
+        sampling[ws] = [r["attribute_s"] for r in results]
+        vertices[ws] = [r["t"].size for r in results]
         self.per_round.append({"lines": int(rows.size), "tasks": len(results), "wall_s": wall,
                                "idle_share": max(0.0, 1.0 - busy / (wall * len(self.addrs))),
                                "worker_lines": np.bincount(who, minlength=len(self.addrs)).tolist(),
                                "worker_s": seconds.tolist(), "worker_cpu_s": cpu.tolist(),
+                               "worker_vertices": vertices.tolist(),
+                               "worker_attribute_s": sampling.tolist(),
                                "shared_blocks": int(np.count_nonzero(self.second >= 0))})
         return results
 

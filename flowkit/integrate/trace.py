@@ -629,11 +629,13 @@ def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols,
         ld.update(cols)
     offsets = np.zeros(n + 1, np.int64)
     np.cumsum(counts, out=offsets[1:])
-    pd = {}
-    if point_data is not None:  # computed by the backend (OpenCL: in its kernel)
-        pd = point_data
-    elif opts.attributes:  # the seed of every vertex only for the attribute that uses it
-        seed_of = seeds[line_of] if "distance_to_seed" in opts.attributes else None
-        pd = _attributes.compute(field, opts.attributes, pts, t, s, seed_of, bricked)
+    # computed by the backend (OpenCL: in its kernel) or by the block owners (those read from
+    # the field); the rest here
+    pd = point_data or {}
+    rest = [n for n in opts.attributes if n not in pd]
+    if rest:  # the seed of every vertex only for the attribute that uses it
+        seed_of = seeds[line_of] if "distance_to_seed" in rest else None
+        pd = {**pd, **_attributes.compute(field, rest, pts, t, s, seed_of, bricked)}
+        pd = {n: pd[n] for n in opts.attributes}
     return Lines(pts, offsets, pd, ld)
 
