@@ -183,6 +183,36 @@ def test_workers_own_about_equal_shares_of_the_bricks(tmp_path):
         assert np.unique(blocks.Layout(fld, n, int(508 * 6144 / 0.8) + 1).owner).size == n
 
 
+def test_a_series_in_block_mode_one_file_per_snapshot(client, tmp_path, capsys):
+    """Two snapshots (the second with a NaN hole across the block face), each traced in block
+    mode into its own file: the lines, attributes and reasons of the serial trace of each,
+    with the snapshot's time and position as the seeds mode writes them."""
+    paths = [_abc_file(tmp_path / "s0.h5"),
+             _abc_file(tmp_path / "s1.h5", hole=(slice(13, 20), slice(4, 12), slice(4, 20)))]
+    kw = {"max_length": 8.0, "direction": "both", "attributes": ["vorticity", "T"]}
+    t = {}
+    outs = trace_distributed([(10.0, str(paths[0])), (20.0, str(paths[1]))], SEEDS,
+                             tmp_path / "lines.h5", client=client, distribute="blocks",
+                             per_snapshot=True, position_dtype="float64", timings=t, **kw)
+    assert [o.name for o in outs] == ["lines_0000.h5", "lines_0001.h5"]
+    for i, (p, o) in enumerate(zip(paths, outs)):
+        got = read_lines(o)
+        _same_lines_and_attrs(trace(load_field(p), SEEDS, **kw), got)
+        assert got.attrs["snapshot_time"] == 10.0 * (i + 1) and got.attrs["snapshot_index"] == i
+        assert got.attrs["distribute"] == "blocks" and got.attrs["handoffs_per_line"] > 0
+    assert [s["block_rounds"] >= 2 for s in t["snapshots"]] == [True, True]
+    assert t["tasks"] == pytest.approx(sum(s["tasks"] for s in t["snapshots"]))
+    capsys.readouterr()
+    # one file for both: refused in one line, before anything is traced
+    rc = main(["trace", str(tmp_path / "s*.h5"), "-o", str(tmp_path / "one.h5"), "--seeds",
+               "random:10", "--scheduler", client.scheduler.address, "--distribute", "blocks"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1
+    assert "traces the 2 snapshots one after the other into one file each: give " \
+           "per_snapshot=True (--per-snapshot)" in err
+    assert not (tmp_path / "one.h5").exists()
+
+
 # -- the choice of mode --------------------------------------------------------------------
 class _Info:
     def __init__(self, *limits):
@@ -200,9 +230,17 @@ def test_the_choice_of_mode(tmp_path):
     assert "200 kB" in why
     assert blocks.choose("auto", fld, _Info(0, 0), 1)[1] == "the workers have no memory limit"
     assert blocks.choose("blocks", fld, _Info(10 ** 9), 1) == ("blocks", "asked for")
-    assert blocks.choose("auto", fld, _Info(1000), 3)[0] == "seeds"  # several snapshots
-    with pytest.raises(ValueError, match="traces one snapshot"):
+    # a series: by its first snapshot, in block mode one file per snapshot
+    assert blocks.choose("auto", fld, _Info(10 ** 9), 3)[0] == "seeds"
+    mode, why = blocks.choose("auto", fld, _Info(1000), 3, per_snapshot=True)
+    assert mode == "blocks" and why.startswith("a snapshot's vector (166 kB) does not fit")
+    assert blocks.choose("blocks", fld, _Info(1000), 3, per_snapshot=True)[0] == "blocks"
+    with pytest.raises(ValueError, match="traces the 3 snapshots one after the other into one "
+                                         "file each: give per_snapshot=True"):
         blocks.choose("blocks", fld, _Info(1000), 3)
+    with pytest.raises(ValueError, match="does not fit .* block mode writes one file per "
+                                         "snapshot: give per_snapshot=True"):
+        blocks.choose("auto", fld, _Info(1000), 3)
     with pytest.raises(ValueError, match="expected one of auto, seeds, blocks"):
         blocks.choose("domains", fld, _Info(1000), 1)
 

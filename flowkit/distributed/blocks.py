@@ -77,24 +77,32 @@ class BlockError(JobError):
 
 
 # -- the choice of mode ------------------------------------------------------------------------
-def choose(distribute: str, field, client, n_snapshots: int) -> tuple[str, str]:
+def choose(distribute: str, field, client, n_snapshots: int,
+           per_snapshot: bool = False) -> tuple[str, str]:
     """("seeds" or "blocks", why): blocks where a worker cannot hold the field's vector
-    (``POOL_SHARE`` of its memory limit), seeds where it can (or is given no limit)."""
+    (``POOL_SHARE`` of its memory limit; a series': its first snapshot's), seeds where it can
+    (or is given no limit).  Block mode traces a series snapshot by snapshot into one file
+    each (``per_snapshot``): where it would have to write one file, a ValueError says so."""
     if distribute not in MODES:
         raise ValueError(f"distribute = {distribute!r}: expected one of {', '.join(MODES)}")
-    if distribute == "blocks" and n_snapshots > 1:
-        raise ValueError("distribute='blocks' traces one snapshot: pick it with snapshots=[i]")
+    one_file = n_snapshots > 1 and not per_snapshot
+    if distribute == "blocks" and one_file:
+        raise ValueError(f"distribute='blocks' traces the {n_snapshots} snapshots one after the "
+                         f"other into one file each: give per_snapshot=True (--per-snapshot), "
+                         f"or distribute='seeds' for one file")
     if distribute != "auto":
         return distribute, "asked for"
-    if n_snapshots > 1:
-        return "seeds", f"{n_snapshots} snapshots: block mode traces one"
-    size = field.stored_vector().nbytes
     limit = worker_memory(client)
     if limit is None:
         return "seeds", "the workers have no memory limit"
+    size = field.stored_vector().nbytes
     fits = size <= POOL_SHARE * limit
-    why = (f"the field's vector ({fmt_bytes(size)}) {'fits' if fits else 'does not fit'} "
+    what = "the field's vector" if n_snapshots == 1 else "a snapshot's vector"
+    why = (f"{what} ({fmt_bytes(size)}) {'fits' if fits else 'does not fit'} "
            f"{POOL_SHARE:.0%} of a worker's memory limit ({fmt_bytes(limit)})")
+    if not fits and one_file:
+        raise ValueError(f"{field.source}: {why}, and block mode writes one file per snapshot: "
+                         f"give per_snapshot=True (--per-snapshot)")
     return ("seeds" if fits else "blocks"), why
 
 
@@ -299,7 +307,7 @@ class BlockRun:
 
     def __init__(self, client, field, source, vector, opts: TraceOptions, why: str,
                  retries: int = 2, budget: int | None = None, load=None,
-                 balance: bool = True):
+                 balance: bool = True, attrs: dict | None = None):
         entry = opts.entry
         if entry.explicit is None or entry.retrace is not None:
             raise ValueError(f"method {entry.name}: block mode runs the explicit methods (a field "
@@ -314,6 +322,7 @@ class BlockRun:
             budget = None if limit is None else int(WORKER_SHARE * limit)
         self.bricks = self.layout = Layout(field, len(self.addrs), opts.memory or budget)
         self.balance = balance
+        self.attrs = dict(attrs or {})
         self.second = np.full(self.layout.n_blocks, -1, np.int64)  # a block's second owner
         self.job = Job(f"{os.getpid()}-{id(self)}-{time.time_ns()}", source, vector, opts,
                        tuple(int(v) for v in self.layout.size),
@@ -457,7 +466,8 @@ class BlockRun:
                 self.addrs[i] = spare.pop(0) if spare else live[0]
 
     def reads(self) -> dict:
-        """The Lines.attrs of the job: mode and why, blocks, rounds, handoffs, idle, reads."""
+        """The Lines.attrs of the job: mode and why, blocks, rounds, handoffs, idle, reads,
+        and the ``attrs`` given (a series' snapshot time and index)."""
         st, lay = self.stats, self.layout
         return {"distribute": "blocks", "distribute_why": self.why, "blocks": lay.n_blocks,
                 "block_bricks": " ".join(str(int(v)) for v in lay.span),
@@ -465,7 +475,7 @@ class BlockRun:
                 "shared_blocks": int(np.count_nonzero(self.second >= 0)),
                 "handoffs_per_line": (st["sends"] - st["lines"]) / max(1, st["lines"]),
                 "idle_share": 1.0 - st["busy"] / st["slots"] if st["slots"] else 0.0,
-                "bricks_read": st["loads"], "field_bytes_read": st["bytes_read"]}
+                "bricks_read": st["loads"], "field_bytes_read": st["bytes_read"], **self.attrs}
 
     @property
     def path(self) -> str:
@@ -474,12 +484,14 @@ class BlockRun:
 
 def trace_blocks(client, source, vector, seeds, out, opts: TraceOptions, why: str, *,
                  position_dtype="float32", retries: int = 2, timings: dict | None = None,
-                 field=None, load=None, balance: bool = True):
+                 field=None, load=None, balance: bool = True, attrs: dict | None = None):
     """Lines of ``seeds`` through the snapshot ``source`` in block mode, written to ``out``
     as ``trace_to_file`` writes them (all or nothing).  Returns ``out``.  ``balance``: share
-    crowded blocks with a second owner (False: each block on its one owner, to compare)."""
+    crowded blocks with a second owner (False: each block on its one owner, to compare);
+    ``attrs``: root attributes the file gets besides the trace's."""
     field = open_field(source, vector, load) if field is None else field
-    run = BlockRun(client, field, source, vector, opts, why, retries, load=load, balance=balance)
+    run = BlockRun(client, field, source, vector, opts, why, retries, load=load, balance=balance,
+                   attrs=attrs)
     t0 = time.perf_counter()
     path = trace_to_file(field, seeds, out, opts, setup=run, batch_seeds=BATCH_LINES,
                          position_dtype=position_dtype, empty="ignore")
