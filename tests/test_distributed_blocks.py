@@ -19,6 +19,7 @@ from flowkit import trace
 from flowkit.cli import main
 from flowkit.distributed import JobError, blocks, trace_distributed
 from flowkit.fields import load_field, save_field
+from flowkit.integrate.trace import trace_to_file
 from flowkit.io.lines_h5 import read_lines
 
 L = 2 * np.pi
@@ -67,6 +68,26 @@ def test_block_mode_equals_the_serial_trace(client, tmp_path, case):
     assert t["blocks"] >= 2 and t["block_rounds"] >= 2 and t["handoffs_per_line"] > 0
     assert all(0 <= r["idle_share"] <= 1 for r in t["rounds"]) and len(t["rounds"]) >= 2
     assert got.attrs["distribute"] == "blocks" and got.attrs["bricks_read"] > 0
+
+
+def test_float32_output_rounded_on_the_workers(client, tmp_path):
+    """The default float32 positions: rounded by the workers (12 bytes a vertex back, with no
+    attribute reading t or s, and a line and a count per run of a line's vertices), or sent as
+    float64 with t and s where the client computes the distance to the seed, time and arc
+    length from them (40); the file holds what one process writes, bit for bit."""
+    path = _abc_file(tmp_path / "abc.h5")
+    for kw, least in (({"max_length": 8.0}, 12),
+                      ({"max_length": 6.0, "direction": "both",
+                        "attributes": ["time", "arc_length", "distance_to_seed"]}, 40)):
+        ref = read_lines(trace_to_file(load_field(path), SEEDS, tmp_path / "ref.h5", **kw))
+        t = {}
+        got = read_lines(trace_distributed(path, SEEDS, tmp_path / "b.h5", client=client,
+                                           distribute="blocks", timings=t, **kw)[0])
+        assert got.points.dtype == np.float32
+        _same_lines_and_attrs(ref, got)
+        sent = sum(r["vertex_bytes"] for r in t["rounds"])
+        vertices = sum(sum(r["worker_vertices"]) for r in t["rounds"])
+        assert t["handoffs_per_line"] > 0 and least < sent / vertices < least + 4
 
 
 def test_a_nan_hole_across_a_block_face(client, tmp_path):

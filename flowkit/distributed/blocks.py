@@ -172,6 +172,7 @@ class Job:
     budget: int  # bytes of a worker's pool
     speed: float  # the field's typical speed (sampled on the client: on a small field, all of it)
     load: dict  # load_field's keywords (a mesh's resample=, ...): each worker resamples its own
+    points: str = "float64"  # the dtype the vertices travel back in: the output's, where exact
 
 
 @dataclass
@@ -276,11 +277,28 @@ def advance(job: Job, owned: np.ndarray, emit: int, batch: Batch) -> dict:
                              f"{', '.join(names)} failed: {_one_line(e)}") from None
         loads, read = pool.loads - loads, pool.bytes_read - read
         paths = sorted(setup.paths)
+    # back to the client only what it uses: the positions in the output's dtype where rounding
+    # here gives the same bits, t and s where attributes or joining halves read them, and each
+    # run of vertices of one line as (line, count): 12 bytes a vertex instead of 48
+    opts = job.options
+    runs, lengths = _runs(batch.rows[owner])
     return {"rows": batch.rows, "sf": sf, "si": si, "wanted": rounds.wanted, "cell": rounds.cell,
-            "left": unfinished(si), "points": pts, "t": t, "s": s, "owner": batch.rows[owner],
+            "left": unfinished(si), "points": pts.astype(job.points, copy=False),
+            "t": t if "time" in opts.attributes else None,
+            "s": s if (opts.direction == "both" or emit == S.EMIT_FINAL
+                       or "arc_length" in opts.attributes) else None,
+            "runs": runs, "lengths": lengths,
             "point_data": point_data, "worker": worker, "seconds": time.perf_counter() - t0,
             "attribute_s": time.perf_counter() - t1, "cpu_s": time.thread_time() - cpu0,
             "loads": loads, "bytes_read": read, "paths": paths}
+
+
+def _runs(owner: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The runs of equal values of ``owner``: (value, length) of each, in order."""
+    if not owner.size:
+        return owner, owner
+    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    return owner[starts], np.diff(np.r_[starts, owner.size])
 
 
 def _attribute_budget(pool_budget: int) -> int:
@@ -307,7 +325,7 @@ class BlockRun:
 
     def __init__(self, client, field, source, vector, opts: TraceOptions, why: str,
                  retries: int = 2, budget: int | None = None, load=None,
-                 balance: bool = True, attrs: dict | None = None):
+                 balance: bool = True, attrs: dict | None = None, position_dtype="float64"):
         entry = opts.entry
         if entry.explicit is None or entry.retrace is not None:
             raise ValueError(f"method {entry.name}: block mode runs the explicit methods (a field "
@@ -327,7 +345,12 @@ class BlockRun:
         self.job = Job(f"{os.getpid()}-{id(self)}-{time.time_ns()}", source, vector, opts,
                        tuple(int(v) for v in self.layout.size),
                        tuple(int(v) for v in self.layout.span), self.layout.budget,
-                       typical_speed(field), dict(load or {}))
+                       typical_speed(field), dict(load or {}),
+                       # (rounded on the workers as the writer would: the same bits; not where
+                       # the client computes from the positions, or another rounding would
+                       # follow)
+                       "float32" if np.dtype(position_dtype) == np.float32
+                       and "distance_to_seed" not in opts.attributes else "float64")
         self.paths: set = set()
         self.stats = {"rounds": 0, "sends": 0, "lines": 0, "busy": 0.0, "slots": 0.0,
                       "loads": 0, "bytes_read": 0}
@@ -341,37 +364,62 @@ class BlockRun:
         wanted, cell = np.full((n, WANTED), -1, np.int64), np.full((n, 3), -1, np.int64)
         block = self.layout.blocks_of_points(seeds)
         live = np.arange(n, dtype=np.int64)
-        chunks, sampled = [], []
+        got = []
         self.stats["lines"] += n
+        state = Batch(np.arange(n, dtype=np.int64), seeds, dirs, spacing, phase, sf, si, wanted,
+                      cell)
         while live.size:
-            results = self._round(live, block[live], emit, Batch(
-                live, seeds[live], dirs[live], spacing[live], phase[live], sf[live], si[live],
-                wanted[live], cell[live]))
-            for r in results:
+            for r in self._round(live, block[live], emit, state):
                 rows = r["rows"]
                 sf[rows], si[rows], wanted[rows], cell[rows] = r["sf"], r["si"], r["wanted"], r["cell"]
-                chunks.append((r["points"], r["t"], r["s"], r["owner"]))
-                sampled.append(r["point_data"])
+                got.append(r)
             live = live[unfinished(si[live])]
             block[live] = self.layout.blocks_of_bricks(si[live, S.I_WAIT] - 1)
             if np.any(si[live, S.I_WAIT] <= 0):  # (a worker returns a line only when it waits)
                 raise RuntimeError("a block task returned a line that waits for no brick")
-        pts, t, s, owner = (np.concatenate(c) for c in zip(*chunks))
-        order = np.argsort(owner, kind="stable")  # rounds in order: each line's vertices in order
+        return (*self._assemble(got), si)
+
+    def _assemble(self, got: list[dict]):
+        """(points, t, s, owner) of the tasks' results ``got`` grouped by line, each line's
+        runs in the order of the rounds (each its vertices in order), and ``point_data`` the
+        same way: each result's vertices scattered straight to their places."""
+        runs = np.concatenate([r["runs"] for r in got])
+        lengths = np.concatenate([r["lengths"] for r in got])
+        order = np.argsort(runs, kind="stable")  # (runs, not vertices: a few per line)
+        start = np.empty_like(lengths)  # where each run goes
+        start[order] = np.cumsum(lengths[order]) - lengths[order]
+        total = int(lengths.sum())
+        first = got[0]
         # (a task that emitted no vertex sampled nothing)
-        names = next((list(d) for d in sampled if d), [])
-        self.point_data = {k: np.concatenate([d[k] for d in sampled if d])[order]
-                           for k in names} or None
-        return pts[order], t[order], s[order], owner[order], si
+        names = next((list(r["point_data"]) for r in got if r["point_data"]), [])
+        out = {"points": np.empty((total, 3), first["points"].dtype),
+               "t": np.zeros(total), "s": np.zeros(total)}  # (zeros: not read, not sent)
+        out.update({k: np.empty((total, *v.shape[1:]), v.dtype) for k, v in next(
+            (r["point_data"] for r in got if r["point_data"]), {}).items()})
+        at = 0
+        for r in got:
+            k = r["runs"].size
+            if not k:
+                continue
+            ln = lengths[at:at + k]
+            dest = np.repeat(start[at:at + k] - (np.cumsum(ln) - ln), ln) + np.arange(ln.sum())
+            at += k
+            for key, v in (("points", r["points"]), ("t", r["t"]), ("s", r["s"]),
+                           *r["point_data"].items()):
+                if v is not None:
+                    out[key][dest] = v
+        self.point_data = {k: out[k] for k in names} or None
+        return out["points"], out["t"], out["s"], np.repeat(runs[order], lengths[order])
 
     def _round(self, rows, block, emit, batch: Batch) -> list[dict]:
-        """One task per worker that owns blocks where lines wait; their results."""
+        """One task per worker that owns blocks where the lines ``rows`` of ``batch`` (every
+        line's state) wait; their results."""
         self._replace_lost_workers()
         t0 = time.perf_counter()
         who = self._assign(block)
         futures, ws = [], np.unique(who)
         for w in ws:
-            pick = np.flatnonzero(who == w)
+            pick = rows[who == w]  # (the whole state indexed once)
             part = Batch(*(getattr(batch, f)[pick] for f in Batch.__dataclass_fields__))
             owned = (self.layout.owner == w) | (self.second == w)
             futures.append(self.client.submit(
@@ -408,13 +456,17 @@ class BlockRun:
         vertices = np.zeros(len(self.addrs), np.int64)
         seconds[ws], cpu[ws] = [r["seconds"] for r in results], [r["cpu_s"] for r in results]
         sampling[ws] = [r["attribute_s"] for r in results]
-        vertices[ws] = [r["t"].size for r in results]
+        vertices[ws] = [r["points"].shape[0] for r in results]
+        back = sum(v.nbytes for r in results for v in (r["points"], r["t"], r["s"], r["runs"],
+                                                        r["lengths"], *r["point_data"].values())
+                   if v is not None)
         self.per_round.append({"lines": int(rows.size), "tasks": len(results), "wall_s": wall,
                                "idle_share": max(0.0, 1.0 - busy / (wall * len(self.addrs))),
                                "worker_lines": np.bincount(who, minlength=len(self.addrs)).tolist(),
                                "worker_s": seconds.tolist(), "worker_cpu_s": cpu.tolist(),
                                "worker_vertices": vertices.tolist(),
                                "worker_attribute_s": sampling.tolist(),
+                               "vertex_bytes": int(back),
                                "shared_blocks": int(np.count_nonzero(self.second >= 0))})
         return results
 
@@ -491,7 +543,7 @@ def trace_blocks(client, source, vector, seeds, out, opts: TraceOptions, why: st
     ``attrs``: root attributes the file gets besides the trace's."""
     field = open_field(source, vector, load) if field is None else field
     run = BlockRun(client, field, source, vector, opts, why, retries, load=load, balance=balance,
-                   attrs=attrs)
+                   attrs=attrs, position_dtype=position_dtype)
     t0 = time.perf_counter()
     path = trace_to_file(field, seeds, out, opts, setup=run, batch_seeds=BATCH_LINES,
                          position_dtype=position_dtype, empty="ignore")
