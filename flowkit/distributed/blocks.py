@@ -545,8 +545,9 @@ def trace_blocks(client, source, vector, seeds, out, opts: TraceOptions, why: st
     run = BlockRun(client, field, source, vector, opts, why, retries, load=load, balance=balance,
                    attrs=attrs, position_dtype=position_dtype)
     t0 = time.perf_counter()
+    # (written while the next batch's rounds run: the client mostly waits for the workers)
     path = trace_to_file(field, seeds, out, opts, setup=run, batch_seeds=BATCH_LINES,
-                         position_dtype=position_dtype, empty="ignore")
+                         position_dtype=position_dtype, empty="ignore", write_behind=True)
     if timings is not None:
         timings.update(tasks=time.perf_counter() - t0, rounds=run.per_round, **run.reads())
     return path
