@@ -19,6 +19,7 @@ from flowkit import trace
 from flowkit.cli import main
 from flowkit.distributed import JobError, blocks, trace_distributed
 from flowkit.fields import load_field, save_field
+from flowkit.integrate.trace import trace_to_file
 from flowkit.io.lines_h5 import read_lines
 
 L = 2 * np.pi
@@ -51,8 +52,10 @@ CASES = {
                          "attributes": ["speed", "velocity", "vorticity", "T", "arc_length",
                                         "distance_to_seed"]},
     "backward, resampled": {"max_length": 6.0, "direction": "backward", "count": 30},
-    # a pool of 14 bricks of 27: lines wait for bricks outside the pool as well as the block
-    "small pool": {"max_length": 10.0, "direction": "both", "memory": "110kB"},
+    # a pool of 14 bricks of 27: lines wait for bricks outside the pool as well as the block;
+    # the vorticity's boxes span more bricks than it holds (sampled through a pool of its own)
+    "small pool": {"max_length": 10.0, "direction": "both", "memory": "110kB",
+                   "attributes": ["vorticity"]},
 }
 
 
@@ -67,6 +70,26 @@ def test_block_mode_equals_the_serial_trace(client, tmp_path, case):
     assert got.attrs["distribute"] == "blocks" and got.attrs["bricks_read"] > 0
 
 
+def test_float32_output_rounded_on_the_workers(client, tmp_path):
+    """The default float32 positions: rounded by the workers (12 bytes a vertex back, with no
+    attribute reading t or s, and a line and a count per run of a line's vertices), or sent as
+    float64 with t and s where the client computes the distance to the seed, time and arc
+    length from them (40); the file holds what one process writes, bit for bit."""
+    path = _abc_file(tmp_path / "abc.h5")
+    for kw, least in (({"max_length": 8.0}, 12),
+                      ({"max_length": 6.0, "direction": "both",
+                        "attributes": ["time", "arc_length", "distance_to_seed"]}, 40)):
+        ref = read_lines(trace_to_file(load_field(path), SEEDS, tmp_path / "ref.h5", **kw))
+        t = {}
+        got = read_lines(trace_distributed(path, SEEDS, tmp_path / "b.h5", client=client,
+                                           distribute="blocks", timings=t, **kw)[0])
+        assert got.points.dtype == np.float32
+        _same_lines_and_attrs(ref, got)
+        sent = sum(r["vertex_bytes"] for r in t["rounds"])
+        vertices = sum(sum(r["worker_vertices"]) for r in t["rounds"])
+        assert t["handoffs_per_line"] > 0 and least < sent / vertices < least + 4
+
+
 def test_a_nan_hole_across_a_block_face(client, tmp_path):
     """The two blocks meet at x node 16 (bricks of 8, 2 bricks per block along x): NaN nodes
     on both sides end lines there with the serial reasons."""
@@ -78,6 +101,45 @@ def test_a_nan_hole_across_a_block_face(client, tmp_path):
     _same_lines_and_attrs(whole, got)
     reasons = np.concatenate([got.line_data["reason"], got.line_data["reason_backward"]])
     assert np.count_nonzero(reasons == 6) >= 5  # (6: a NaN node)
+
+
+def test_attributes_are_sampled_by_the_block_owners(client, tmp_path, monkeypatch):
+    """Seeds at the face between the 2 blocks (x node 16: bricks of 8, 2 bricks per block along
+    x), one owner each: every attribute read from the field is sampled on the workers (the
+    client's compute is refused them), the vorticity of vertices within the curl's reach of
+    the face from nodes of both blocks; all equal the serial trace's, bit for bit."""
+    from flowkit.fields.curl import CURL_REACH
+    from flowkit.integrate import attributes
+
+    path = _abc_file(tmp_path / "abc.h5")
+    h = L / 23
+    seeds = np.random.default_rng(5).random((40, 3)) * [2 * h, L, L] + [15 * h, 0, 0]
+    kw = {"max_length": 6.0, "direction": "both",
+          "attributes": ["vorticity", "vorticity_magnitude", "velocity", "T", "time",
+                         "distance_to_seed"]}
+    whole = trace(load_field(path), seeds, **kw)
+    compute = attributes.compute
+
+    def on_the_client(field, names, *a, **k):
+        assert not attributes.from_field(names), f"the client computed {names}"
+        return compute(field, names, *a, **k)
+
+    monkeypatch.setattr(attributes, "compute", on_the_client)
+    t = {}
+    got = read_lines(trace_distributed(path, seeds, tmp_path / "b.h5", client=client,
+                                       distribute="blocks", position_dtype="float64",
+                                       timings=t, balance=False, **kw)[0])
+    _same_lines_and_attrs(whole, got)
+    assert t["block_bricks"] == "2 3 3" and t["handoffs_per_line"] > 0
+    # both owners sampled the vertices they emitted: every vertex, the seed of each line twice
+    per_worker = np.sum([r["worker_vertices"] for r in t["rounds"]], axis=0)
+    assert per_worker.min() > 0 and per_worker.sum() == got.n_points + len(got)
+    assert all(s > 0 for r in t["rounds"] for s, v in zip(r["worker_attribute_s"],
+                                                          r["worker_vertices"]) if v)
+    near = np.abs(got.points[:, 0] / h - 16) < CURL_REACH
+    below = near & (got.points[:, 0] < 16 * h)
+    assert below.sum() > 20 and (near & ~below).sum() > 20
+    assert np.isfinite(got.point_data["vorticity"][near]).all()
 
 
 def test_periodic_axes(client, tmp_path):
@@ -142,6 +204,36 @@ def test_workers_own_about_equal_shares_of_the_bricks(tmp_path):
         assert np.unique(blocks.Layout(fld, n, int(508 * 6144 / 0.8) + 1).owner).size == n
 
 
+def test_a_series_in_block_mode_one_file_per_snapshot(client, tmp_path, capsys):
+    """Two snapshots (the second with a NaN hole across the block face), each traced in block
+    mode into its own file: the lines, attributes and reasons of the serial trace of each,
+    with the snapshot's time and position as the seeds mode writes them."""
+    paths = [_abc_file(tmp_path / "s0.h5"),
+             _abc_file(tmp_path / "s1.h5", hole=(slice(13, 20), slice(4, 12), slice(4, 20)))]
+    kw = {"max_length": 8.0, "direction": "both", "attributes": ["vorticity", "T"]}
+    t = {}
+    outs = trace_distributed([(10.0, str(paths[0])), (20.0, str(paths[1]))], SEEDS,
+                             tmp_path / "lines.h5", client=client, distribute="blocks",
+                             per_snapshot=True, position_dtype="float64", timings=t, **kw)
+    assert [o.name for o in outs] == ["lines_0000.h5", "lines_0001.h5"]
+    for i, (p, o) in enumerate(zip(paths, outs)):
+        got = read_lines(o)
+        _same_lines_and_attrs(trace(load_field(p), SEEDS, **kw), got)
+        assert got.attrs["snapshot_time"] == 10.0 * (i + 1) and got.attrs["snapshot_index"] == i
+        assert got.attrs["distribute"] == "blocks" and got.attrs["handoffs_per_line"] > 0
+    assert [s["block_rounds"] >= 2 for s in t["snapshots"]] == [True, True]
+    assert t["tasks"] == pytest.approx(sum(s["tasks"] for s in t["snapshots"]))
+    capsys.readouterr()
+    # one file for both: refused in one line, before anything is traced
+    rc = main(["trace", str(tmp_path / "s*.h5"), "-o", str(tmp_path / "one.h5"), "--seeds",
+               "random:10", "--scheduler", client.scheduler.address, "--distribute", "blocks"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1
+    assert "traces the 2 snapshots one after the other into one file each: give " \
+           "per_snapshot=True (--per-snapshot)" in err
+    assert not (tmp_path / "one.h5").exists()
+
+
 # -- the choice of mode --------------------------------------------------------------------
 class _Info:
     def __init__(self, *limits):
@@ -159,9 +251,17 @@ def test_the_choice_of_mode(tmp_path):
     assert "200 kB" in why
     assert blocks.choose("auto", fld, _Info(0, 0), 1)[1] == "the workers have no memory limit"
     assert blocks.choose("blocks", fld, _Info(10 ** 9), 1) == ("blocks", "asked for")
-    assert blocks.choose("auto", fld, _Info(1000), 3)[0] == "seeds"  # several snapshots
-    with pytest.raises(ValueError, match="traces one snapshot"):
+    # a series: by its first snapshot, in block mode one file per snapshot
+    assert blocks.choose("auto", fld, _Info(10 ** 9), 3)[0] == "seeds"
+    mode, why = blocks.choose("auto", fld, _Info(1000), 3, per_snapshot=True)
+    assert mode == "blocks" and why.startswith("a snapshot's vector (166 kB) does not fit")
+    assert blocks.choose("blocks", fld, _Info(1000), 3, per_snapshot=True)[0] == "blocks"
+    with pytest.raises(ValueError, match="traces the 3 snapshots one after the other into one "
+                                         "file each: give per_snapshot=True"):
         blocks.choose("blocks", fld, _Info(1000), 3)
+    with pytest.raises(ValueError, match="does not fit .* block mode writes one file per "
+                                         "snapshot: give per_snapshot=True"):
+        blocks.choose("auto", fld, _Info(1000), 3)
     with pytest.raises(ValueError, match="expected one of auto, seeds, blocks"):
         blocks.choose("domains", fld, _Info(1000), 1)
 

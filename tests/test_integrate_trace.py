@@ -289,6 +289,29 @@ def test_trace_to_file_streams_batches_and_reads_back(tmp_path, abc):
     assert back.equals(lines)
 
 
+def test_trace_to_file_writing_behind_the_next_batch(tmp_path, abc, monkeypatch):
+    """write_behind: each batch written in a thread while the next is traced; the same file,
+    and none where a later batch fails (its append finished before the file is dropped)."""
+    from flowkit.integrate import trace as T
+
+    seeds = np.random.default_rng(6).uniform(0, 2 * np.pi, (30, 3))
+    opts = TraceOptions(max_length=3.0, attributes=("speed", "time"))
+    path = trace_to_file(abc, seeds, tmp_path / "l.h5", opts, batch_seeds=7,
+                         position_dtype="float64", write_behind=True)
+    assert read_lines(path).equals(trace(abc, seeds, opts))
+    real = T._trace_batch
+
+    def fails_at_the_third(field, setup, seeds, opts, id0):
+        if id0 == 14:
+            raise RuntimeError("batch 3")
+        return real(field, setup, seeds, opts, id0)
+
+    monkeypatch.setattr(T, "_trace_batch", fails_at_the_third)
+    with pytest.raises(RuntimeError, match="batch 3"):
+        trace_to_file(abc, seeds, tmp_path / "x.h5", opts, batch_seeds=7, write_behind=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["l.h5"]
+
+
 def test_cli_trace_writes_lines(tmp_path, capsys):
     f = UniformFlow(U=(1.0, 0.5, 0.0)).to_field(shape=(5, 5, 5), bounds=[[0, 1]] * 3)
     np.savez(tmp_path / "f.npz", x=f.grid.x, y=f.grid.y, z=f.grid.z, U=f.vector,

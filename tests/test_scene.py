@@ -541,6 +541,58 @@ def test_a_scene_over_a_series_renders_one_image_per_snapshot(tmp_path, spy, cap
         run(path)
 
 
+def _chunked_swirls(tmp_path: Path) -> None:
+    """s10.h5, s20.h5 (times 10 and 20): swirls at 24^3 nodes in chunks of 8^3, so that 2
+    workers own a block each."""
+    import h5py
+
+    for i, w in enumerate((0.5, 1.0)):
+        f = swirl(omega=w, n=24)
+        f.time = 10.0 * (i + 1)
+        p = save_field(f, tmp_path / f"s{10 * (i + 1)}.h5")
+        with h5py.File(p, "a") as h:
+            for name in ("vectors/U", "scalars/T", "scalars/p"):
+                a = h[name][...]
+                del h[name]
+                h.create_dataset(name, data=a, chunks=(8, 8, 8, 3)[:a.ndim])
+
+
+def test_a_scene_says_how_its_workers_split_the_trace(tmp_path, capsys):
+    """``[trace] distribute = "blocks"``: with --workers each snapshot is traced in block mode
+    (one snapshot too), the lines and images those of one process; without workers, a note."""
+    from flowkit.distributed import blocks
+    from flowkit.scene import model
+
+    assert model.DISTRIBUTE == blocks.MODES
+    _chunked_swirls(tmp_path)
+    views, field = f"[views.v]\nsize = {SIZE}\n", 'series = "s*.h5"'
+    outputs = '[outputs]\nimages = "img/{snapshot}.png"\nlines = "lines/{snapshot}.h5"\n'
+    path = write_scene(tmp_path, SPEED, views, 'distribute = "blocks"', field, outputs)
+    assert load_scene(path).distribute == "blocks"
+    seq = run_scene(path, out_dir=tmp_path / "seq", use_cache=False)
+    assert seq.notes == [("[trace] distribute = 'blocks' splits a trace across Dask workers "
+                          "(--workers N, N > 1); traced in this process")]
+    for snap, n in (("all", 2), ("1", 1)):
+        out = tmp_path / f"o{n}"
+        assert main(["scene", str(path), "--workers", "2", "--snapshot", snap, "--out", str(out),
+                     "--no-cache"]) == 0
+        s = "s" if n > 1 else ""
+        assert (f"trace: {n} snapshot{s} on 2 Dask workers, distribute blocks: asked for"
+                in capsys.readouterr().err)
+        for i in range(2 - n, 2):
+            got = read_lines(out / "lines" / f"{i}.h5")
+            assert got.attrs["distribute"] == "blocks" and got.attrs["blocks"] == 2
+            assert got.attrs["handoffs_per_line"] > 0
+            assert got.equals(read_lines(tmp_path / "seq" / "lines" / f"{i}.h5"))
+            assert (out / "img" / f"{i}.png").read_bytes() == \
+                (tmp_path / "seq" / "img" / f"{i}.png").read_bytes()
+    for bad in ('"domains"', "2"):
+        write_scene(tmp_path, SPEED, views, f"distribute = {bad}", field, outputs)
+        with pytest.raises(SceneError, match=r"\[trace\]: distribute = .* is not allowed; expected "
+                                             r"'auto' or 'seeds' or 'blocks' \(how --workers"):
+            load_scene(path)
+
+
 # -- the demo scene -----------------------------------------------------------------------------
 def test_demo_scene_plans_exactly_what_its_styles_read():
     scene = load_scene(ROOT / "examples" / "hotroom_scene.toml")

@@ -13,9 +13,13 @@ trace's own passes (``Setup.passes``) on them until each line has ended or waits
 of a block it does not own, and sends back the states, the vertices they emitted and (in
 ``si``) the bricks they wait for.  The kernel suspends a line that meets a brick not resident
 at the start of its step and takes the same step again once it is there, so the lines are those
-of one process, bit for bit, wherever they ran.  The client keeps the vertices; the lines are
-assembled in seed order by the trace's own code (``trace_to_file``, through the atomic
-writer): attributes are computed there, from the bricks near the vertices.
+of one process, bit for bit, wherever they ran.  The worker also samples the attributes read
+from the field (velocity, vorticity, scalars) at the vertices it emitted, by the trace's own
+``attributes.compute`` through its pool (a vertex's curl may reach into another worker's block:
+those few bricks are read too), and sends them with the vertices: the client never reads the
+field for them.  The client keeps the vertices; the lines are assembled in seed order by the
+trace's own code (``trace_to_file``, through the atomic writer), with time, arc length and the
+distance to the seed, which need no field.
 
 Load balance, as Viskores does it: where one worker holds most of a round's lines (a plume, a
 vortex: seeds all in one block; a worker whose blocks hold more of the field), its most crowded
@@ -39,9 +43,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fields.bricks import MIN_SLOTS, POOL_SHARE, BrickPool, brick_nodes, bricks_of, cell_nodes
+from ..fields.bricks import (
+    GROUP_BYTES,
+    MIN_SLOTS,
+    POOL_SHARE,
+    BrickPool,
+    brick_nodes,
+    bricks_of,
+    cell_nodes,
+)
 from ..fields.stored import fmt_bytes
 from ..integrate import schema as S
+from ..integrate.attributes import check, compute, from_field
 from ..integrate.options import TraceOptions
 from ..integrate.rounds import WANTED, Rounds, block_span, blocks_of
 from ..integrate.trace import pass_budget, trace_to_file, typical_speed, unfinished
@@ -64,24 +77,32 @@ class BlockError(JobError):
 
 
 # -- the choice of mode ------------------------------------------------------------------------
-def choose(distribute: str, field, client, n_snapshots: int) -> tuple[str, str]:
+def choose(distribute: str, field, client, n_snapshots: int,
+           per_snapshot: bool = False) -> tuple[str, str]:
     """("seeds" or "blocks", why): blocks where a worker cannot hold the field's vector
-    (``POOL_SHARE`` of its memory limit), seeds where it can (or is given no limit)."""
+    (``POOL_SHARE`` of its memory limit; a series': its first snapshot's), seeds where it can
+    (or is given no limit).  Block mode traces a series snapshot by snapshot into one file
+    each (``per_snapshot``): where it would have to write one file, a ValueError says so."""
     if distribute not in MODES:
         raise ValueError(f"distribute = {distribute!r}: expected one of {', '.join(MODES)}")
-    if distribute == "blocks" and n_snapshots > 1:
-        raise ValueError("distribute='blocks' traces one snapshot: pick it with snapshots=[i]")
+    one_file = n_snapshots > 1 and not per_snapshot
+    if distribute == "blocks" and one_file:
+        raise ValueError(f"distribute='blocks' traces the {n_snapshots} snapshots one after the "
+                         f"other into one file each: give per_snapshot=True (--per-snapshot), "
+                         f"or distribute='seeds' for one file")
     if distribute != "auto":
         return distribute, "asked for"
-    if n_snapshots > 1:
-        return "seeds", f"{n_snapshots} snapshots: block mode traces one"
-    size = field.stored_vector().nbytes
     limit = worker_memory(client)
     if limit is None:
         return "seeds", "the workers have no memory limit"
+    size = field.stored_vector().nbytes
     fits = size <= POOL_SHARE * limit
-    why = (f"the field's vector ({fmt_bytes(size)}) {'fits' if fits else 'does not fit'} "
+    what = "the field's vector" if n_snapshots == 1 else "a snapshot's vector"
+    why = (f"{what} ({fmt_bytes(size)}) {'fits' if fits else 'does not fit'} "
            f"{POOL_SHARE:.0%} of a worker's memory limit ({fmt_bytes(limit)})")
+    if not fits and one_file:
+        raise ValueError(f"{field.source}: {why}, and block mode writes one file per snapshot: "
+                         f"give per_snapshot=True (--per-snapshot)")
     return ("seeds" if fits else "blocks"), why
 
 
@@ -151,6 +172,7 @@ class Job:
     budget: int  # bytes of a worker's pool
     speed: float  # the field's typical speed (sampled on the client: on a small field, all of it)
     load: dict  # load_field's keywords (a mesh's resample=, ...): each worker resamples its own
+    points: str = "float64"  # the dtype the vertices travel back in: the output's, where exact
 
 
 @dataclass
@@ -184,6 +206,7 @@ _SETUPS_LOCK = threading.Lock()
 
 
 def _setup(job: Job):
+    """(Setup, lock, field) of the job on this worker."""
     from ..integrate.trace import Setup
 
     with _SETUPS_LOCK:
@@ -193,7 +216,7 @@ def _setup(job: Job):
             field = open_field(job.source, job.vector, job.load)
             pool = _Pool(field.stored_vector(), field.grid, job.budget, job.size)
             got = _SETUPS[job.key] = (Setup(field, job.options, "numba", pool, job.speed),
-                                      threading.Lock())
+                                      threading.Lock(), field)
     return got
 
 
@@ -214,7 +237,7 @@ def advance(job: Job, owned: np.ndarray, emit: int, batch: Batch) -> dict:
     worker = _worker_name()
     mine = np.flatnonzero(owned)
     try:
-        setup, lock = _setup(job)
+        setup, lock, field = _setup(job)
     except Exception as e:  # noqa: BLE001 (whatever opening raised, named in one line)
         raise BlockError(f"worker {worker}: blocks {_ranges(mine)} of {where}: cannot open the "
                          f"field: {_one_line(e)}") from None
@@ -227,29 +250,61 @@ def advance(job: Job, owned: np.ndarray, emit: int, batch: Batch) -> dict:
         rounds.wanted[:], rounds.cell[:] = batch.wanted, batch.cell
         io = setup.tasks(0, emit)[0]
         out = setup.buffers(n, pass_budget(n, emit, job.options.budget))
-        parts = []
+        parts, point_data, sampling = [], {}, False
+        names = from_field(job.options.attributes) if emit != S.EMIT_FINAL else []
         try:
             for part, _, _ in setup.passes(np.arange(n, dtype=np.int64), batch.seeds,
                                            batch.dirs, batch.spacing, batch.phase, io, sf, si,
                                            out, rounds, owned):
                 parts.append(part)
+            pts, t, s, owner = (np.concatenate(c) for c in zip(*parts)) if parts else (
+                np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64))
+            t1, sampling = time.perf_counter(), True
+            if names and pts.shape[0]:
+                # the attributes read from the field, here: the client never reads it; through
+                # this worker's pool, whose bricks are those near most of these vertices
+                point_data = compute(field, names, pts, None, None, None, bricked=True,
+                                     pool=pool, budget=_attribute_budget(job.budget))
         except Exception as e:
-            brick = pool.reading
-            if brick < 0:
+            brick, pool.reading = pool.reading, -1
+            if brick >= 0:
+                block = int(blocks_of(np.array([brick]), pool.count, job.span)[0])
+                raise BlockError(f"worker {worker}: block {block} (brick {brick}) of {where} "
+                                 f"failed to load: {_one_line(e)}") from None
+            if not sampling:
                 raise
-            pool.reading = -1
-            block = int(blocks_of(np.array([brick]), pool.count, job.span)[0])
-            raise BlockError(f"worker {worker}: block {block} (brick {brick}) of {where} failed "
-                             f"to load: {_one_line(e)}") from None
+            raise BlockError(f"worker {worker}: blocks {_ranges(mine)} of {where}: attributes "
+                             f"{', '.join(names)} failed: {_one_line(e)}") from None
         loads, read = pool.loads - loads, pool.bytes_read - read
         paths = sorted(setup.paths)
-    pts, t, s, owner = (np.concatenate(c) for c in zip(*parts)) if parts else (
-        np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int64))
+    # back to the client only what it uses: the positions in the output's dtype where rounding
+    # here gives the same bits, t and s where attributes or joining halves read them, and each
+    # run of vertices of one line as (line, count): 12 bytes a vertex instead of 48
+    opts = job.options
+    runs, lengths = _runs(batch.rows[owner])
     return {"rows": batch.rows, "sf": sf, "si": si, "wanted": rounds.wanted, "cell": rounds.cell,
-            "left": unfinished(si), "points": pts, "t": t, "s": s, "owner": batch.rows[owner],
-            "worker": worker, "seconds": time.perf_counter() - t0,
-            "cpu_s": time.thread_time() - cpu0, "loads": loads,
-            "bytes_read": read, "paths": paths}
+            "left": unfinished(si), "points": pts.astype(job.points, copy=False),
+            "t": t if "time" in opts.attributes else None,
+            "s": s if (opts.direction == "both" or emit == S.EMIT_FINAL
+                       or "arc_length" in opts.attributes) else None,
+            "runs": runs, "lengths": lengths,
+            "point_data": point_data, "worker": worker, "seconds": time.perf_counter() - t0,
+            "attribute_s": time.perf_counter() - t1, "cpu_s": time.thread_time() - cpu0,
+            "loads": loads, "bytes_read": read, "paths": paths}
+
+
+def _runs(owner: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The runs of equal values of ``owner``: (value, length) of each, in order."""
+    if not owner.size:
+        return owner, owner
+    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    return owner[starts], np.diff(np.r_[starts, owner.size])
+
+
+def _attribute_budget(pool_budget: int) -> int:
+    """Bytes of the nodes ``by_bricks`` copies at once on a worker: a quarter of its pool's
+    budget (the pool stays for the next round, beside them), at most ``GROUP_BYTES``."""
+    return max(1 << 20, min(GROUP_BYTES, pool_budget // 4))
 
 
 def _one_line(e: Exception) -> str:
@@ -266,15 +321,16 @@ class BlockRun:
     """What ``trace_to_file`` runs the passes of a batch with (in place of a Setup): rounds of
     block tasks on the cluster.  ``reads()`` gives the job's counts for the lines' attrs."""
 
-    point_data = None  # (attributes are computed from the field after the trace)
+    point_data = None  # the last run's attributes read from the field, sampled by the workers
 
     def __init__(self, client, field, source, vector, opts: TraceOptions, why: str,
                  retries: int = 2, budget: int | None = None, load=None,
-                 balance: bool = True):
+                 balance: bool = True, attrs: dict | None = None, position_dtype="float64"):
         entry = opts.entry
         if entry.explicit is None or entry.switch_to is not None:
             raise ValueError(f"method {entry.name}: block mode runs the explicit methods (a field "
                              f"read brick by brick)")
+        check(field, opts.attributes)  # (here, not on every worker)
         self.client, self.retries, self.why = client, retries, why
         self.addrs = sorted(client.scheduler_info()["workers"])
         if not self.addrs:
@@ -284,11 +340,17 @@ class BlockRun:
             budget = None if limit is None else int(WORKER_SHARE * limit)
         self.bricks = self.layout = Layout(field, len(self.addrs), opts.memory or budget)
         self.balance = balance
+        self.attrs = dict(attrs or {})
         self.second = np.full(self.layout.n_blocks, -1, np.int64)  # a block's second owner
         self.job = Job(f"{os.getpid()}-{id(self)}-{time.time_ns()}", source, vector, opts,
                        tuple(int(v) for v in self.layout.size),
                        tuple(int(v) for v in self.layout.span), self.layout.budget,
-                       typical_speed(field), dict(load or {}))
+                       typical_speed(field), dict(load or {}),
+                       # (rounded on the workers as the writer would: the same bits; not where
+                       # the client computes from the positions, or another rounding would
+                       # follow)
+                       "float32" if np.dtype(position_dtype) == np.float32
+                       and "distance_to_seed" not in opts.attributes else "float64")
         self.paths: set = set()
         self.stats = {"rounds": 0, "sends": 0, "lines": 0, "busy": 0.0, "slots": 0.0,
                       "loads": 0, "bytes_read": 0}
@@ -302,32 +364,62 @@ class BlockRun:
         wanted, cell = np.full((n, WANTED), -1, np.int64), np.full((n, 3), -1, np.int64)
         block = self.layout.blocks_of_points(seeds)
         live = np.arange(n, dtype=np.int64)
-        chunks = []
+        got = []
         self.stats["lines"] += n
+        state = Batch(np.arange(n, dtype=np.int64), seeds, dirs, spacing, phase, sf, si, wanted,
+                      cell)
         while live.size:
-            results = self._round(live, block[live], emit, Batch(
-                live, seeds[live], dirs[live], spacing[live], phase[live], sf[live], si[live],
-                wanted[live], cell[live]))
-            for r in results:
+            for r in self._round(live, block[live], emit, state):
                 rows = r["rows"]
                 sf[rows], si[rows], wanted[rows], cell[rows] = r["sf"], r["si"], r["wanted"], r["cell"]
-                chunks.append((r["points"], r["t"], r["s"], r["owner"]))
+                got.append(r)
             live = live[unfinished(si[live])]
             block[live] = self.layout.blocks_of_bricks(si[live, S.I_WAIT] - 1)
             if np.any(si[live, S.I_WAIT] <= 0):  # (a worker returns a line only when it waits)
                 raise RuntimeError("a block task returned a line that waits for no brick")
-        pts, t, s, owner = (np.concatenate(c) for c in zip(*chunks))
-        order = np.argsort(owner, kind="stable")  # rounds in order: each line's vertices in order
-        return pts[order], t[order], s[order], owner[order], si
+        return (*self._assemble(got), si)
+
+    def _assemble(self, got: list[dict]):
+        """(points, t, s, owner) of the tasks' results ``got`` grouped by line, each line's
+        runs in the order of the rounds (each its vertices in order), and ``point_data`` the
+        same way: each result's vertices scattered straight to their places."""
+        runs = np.concatenate([r["runs"] for r in got])
+        lengths = np.concatenate([r["lengths"] for r in got])
+        order = np.argsort(runs, kind="stable")  # (runs, not vertices: a few per line)
+        start = np.empty_like(lengths)  # where each run goes
+        start[order] = np.cumsum(lengths[order]) - lengths[order]
+        total = int(lengths.sum())
+        first = got[0]
+        # (a task that emitted no vertex sampled nothing)
+        names = next((list(r["point_data"]) for r in got if r["point_data"]), [])
+        out = {"points": np.empty((total, 3), first["points"].dtype),
+               "t": np.zeros(total), "s": np.zeros(total)}  # (zeros: not read, not sent)
+        out.update({k: np.empty((total, *v.shape[1:]), v.dtype) for k, v in next(
+            (r["point_data"] for r in got if r["point_data"]), {}).items()})
+        at = 0
+        for r in got:
+            k = r["runs"].size
+            if not k:
+                continue
+            ln = lengths[at:at + k]
+            dest = np.repeat(start[at:at + k] - (np.cumsum(ln) - ln), ln) + np.arange(ln.sum())
+            at += k
+            for key, v in (("points", r["points"]), ("t", r["t"]), ("s", r["s"]),
+                           *r["point_data"].items()):
+                if v is not None:
+                    out[key][dest] = v
+        self.point_data = {k: out[k] for k in names} or None
+        return out["points"], out["t"], out["s"], np.repeat(runs[order], lengths[order])
 
     def _round(self, rows, block, emit, batch: Batch) -> list[dict]:
-        """One task per worker that owns blocks where lines wait; their results."""
+        """One task per worker that owns blocks where the lines ``rows`` of ``batch`` (every
+        line's state) wait; their results."""
         self._replace_lost_workers()
         t0 = time.perf_counter()
         who = self._assign(block)
         futures, ws = [], np.unique(who)
         for w in ws:
-            pick = np.flatnonzero(who == w)
+            pick = rows[who == w]  # (the whole state indexed once)
             part = Batch(*(getattr(batch, f)[pick] for f in Batch.__dataclass_fields__))
             owned = (self.layout.owner == w) | (self.second == w)
             futures.append(self.client.submit(
@@ -360,12 +452,21 @@ class BlockRun:
         for r in results:
             self.paths.update(r["paths"])
         # each worker's time in its task (one task each), and the CPU it got in it
-        seconds, cpu = np.zeros((2, len(self.addrs)))
+        seconds, cpu, sampling = np.zeros((3, len(self.addrs)))
+        vertices = np.zeros(len(self.addrs), np.int64)
         seconds[ws], cpu[ws] = [r["seconds"] for r in results], [r["cpu_s"] for r in results]
+        sampling[ws] = [r["attribute_s"] for r in results]
+        vertices[ws] = [r["points"].shape[0] for r in results]
+        back = sum(v.nbytes for r in results for v in (r["points"], r["t"], r["s"], r["runs"],
+                                                        r["lengths"], *r["point_data"].values())
+                   if v is not None)
         self.per_round.append({"lines": int(rows.size), "tasks": len(results), "wall_s": wall,
                                "idle_share": max(0.0, 1.0 - busy / (wall * len(self.addrs))),
                                "worker_lines": np.bincount(who, minlength=len(self.addrs)).tolist(),
                                "worker_s": seconds.tolist(), "worker_cpu_s": cpu.tolist(),
+                               "worker_vertices": vertices.tolist(),
+                               "worker_attribute_s": sampling.tolist(),
+                               "vertex_bytes": int(back),
                                "shared_blocks": int(np.count_nonzero(self.second >= 0))})
         return results
 
@@ -417,7 +518,8 @@ class BlockRun:
                 self.addrs[i] = spare.pop(0) if spare else live[0]
 
     def reads(self) -> dict:
-        """The Lines.attrs of the job: mode and why, blocks, rounds, handoffs, idle, reads."""
+        """The Lines.attrs of the job: mode and why, blocks, rounds, handoffs, idle, reads,
+        and the ``attrs`` given (a series' snapshot time and index)."""
         st, lay = self.stats, self.layout
         return {"distribute": "blocks", "distribute_why": self.why, "blocks": lay.n_blocks,
                 "block_bricks": " ".join(str(int(v)) for v in lay.span),
@@ -425,7 +527,7 @@ class BlockRun:
                 "shared_blocks": int(np.count_nonzero(self.second >= 0)),
                 "handoffs_per_line": (st["sends"] - st["lines"]) / max(1, st["lines"]),
                 "idle_share": 1.0 - st["busy"] / st["slots"] if st["slots"] else 0.0,
-                "bricks_read": st["loads"], "field_bytes_read": st["bytes_read"]}
+                "bricks_read": st["loads"], "field_bytes_read": st["bytes_read"], **self.attrs}
 
     @property
     def path(self) -> str:
@@ -434,15 +536,18 @@ class BlockRun:
 
 def trace_blocks(client, source, vector, seeds, out, opts: TraceOptions, why: str, *,
                  position_dtype="float32", retries: int = 2, timings: dict | None = None,
-                 field=None, load=None, balance: bool = True):
+                 field=None, load=None, balance: bool = True, attrs: dict | None = None):
     """Lines of ``seeds`` through the snapshot ``source`` in block mode, written to ``out``
     as ``trace_to_file`` writes them (all or nothing).  Returns ``out``.  ``balance``: share
-    crowded blocks with a second owner (False: each block on its one owner, to compare)."""
+    crowded blocks with a second owner (False: each block on its one owner, to compare);
+    ``attrs``: root attributes the file gets besides the trace's."""
     field = open_field(source, vector, load) if field is None else field
-    run = BlockRun(client, field, source, vector, opts, why, retries, load=load, balance=balance)
+    run = BlockRun(client, field, source, vector, opts, why, retries, load=load, balance=balance,
+                   attrs=attrs, position_dtype=position_dtype)
     t0 = time.perf_counter()
+    # (written while the next batch's rounds run: the client mostly waits for the workers)
     path = trace_to_file(field, seeds, out, opts, setup=run, batch_seeds=BATCH_LINES,
-                         position_dtype=position_dtype, empty="ignore")
+                         position_dtype=position_dtype, empty="ignore", write_behind=True)
     if timings is not None:
         timings.update(tasks=time.perf_counter() - t0, rounds=run.per_round, **run.reads())
     return path

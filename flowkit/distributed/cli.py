@@ -28,8 +28,9 @@ def add_scale_options(parser) -> None:
                         "snapshot index")
     g.add_argument("--distribute", choices=("auto", "seeds", "blocks"),
                    help="split the seeds across workers (each reads the whole field) or the "
-                        "field's blocks (each reads its own; lines handed between them); auto "
-                        "(default): blocks where the field does not fit a worker's memory limit")
+                        "field's blocks (each reads its own; lines handed between them; a series "
+                        "snapshot after snapshot, with --per-snapshot); auto (default): blocks "
+                        "where the field does not fit a worker's memory limit")
     g.add_argument("--chunk-seeds", type=int, metavar="N",
                    help="seeds per task (default: about 8 tasks per worker thread)")
     g.add_argument("--pathlines", action="store_true",

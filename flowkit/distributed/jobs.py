@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..integrate.options import TraceOptions
-from .blocks import choose, trace_blocks
+from .blocks import choose, trace_blocks, worker_memory
 from .cluster import connect, slots
 from .join import join_parts
 from .tasks import JobError, SeedSlice, Task, chunk_size, open_field, run_task
@@ -48,9 +48,9 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
     task finished (``tasks``), joining after that (``join``), the task count and the CPU seconds
     the tasks used (``task_cpu``).  Returns the written paths.
     ``distribute``: "seeds" (the seeds split across workers, each reading the whole field),
-    "blocks" (the field's bricks split across workers, lines handed between them: ``blocks``,
-    one snapshot) or "auto": blocks where the field's vector does not fit a worker's memory
-    limit.  The choice and why go to ``timings`` (``distribute``, ``distribute_why``) and, unless
+    "blocks" (the field's bricks split across workers, lines handed between them: ``blocks``;
+    a series snapshot after snapshot, with ``per_snapshot``) or "auto": blocks where the
+    field's vector (a series': the first snapshot's) does not fit a worker's memory limit.  The choice and why go to ``timings`` (``distribute``, ``distribute_why``) and, unless
     ``progress`` is False, a line on stderr; block mode records them in the file's attrs.
     ``load``: load_field's keywords for every snapshot (a mesh's ``resample``, ``block``,
     ``data``): each worker reads and resamples the snapshots it traces itself, once each.
@@ -65,20 +65,19 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
     outputs = [out.with_name(f"{out.stem}_{i:04d}{out.suffix}") for i in range(len(series))] \
         if multi and per_snapshot else [out]
     with connect(client, scheduler, workers) as c:
-        field = None  # (opened, not read, where its size or bricks matter)
-        if distribute != "seeds" and len(series) == 1:
+        field = None  # (opened, not read, where its size or bricks matter: a mesh resampled)
+        if distribute == "blocks" or (distribute == "auto" and worker_memory(c) is not None):
             field = open_field(series[0][1], vector, load)
-        mode, why = choose(distribute, field, c, len(series))
+        mode, why = choose(distribute, field, c, len(series), per_snapshot)
         if timings is not None:
             timings.update(distribute=mode, distribute_why=why)
         if progress is not False:
             print(f"flowkit: distribute {mode}: {why}", file=sys.stderr)
         if mode == "blocks":
             seeds_in = np.load(seed_src) if isinstance(seed_src, str) else seed_src
-            return [trace_blocks(c, series[0][1], vector, seeds_in, out, opts, why,
-                                 position_dtype=position_dtype, retries=retries,
-                                 timings=timings, field=field, load=load,
-                                 balance=balance)]
+            return _blocks_series(c, series, vector, seeds_in, outputs, opts, why, load,
+                                  field, timings, position_dtype=position_dtype,
+                                  retries=retries, balance=balance)
         chunk = _chunk(chunk_seeds, chunk_size(n, len(series), slots(c)))
         job = _job_hash("trace", [_source_id(r) for _, r in series], vector, seed_src, opts, chunk,
                         position_dtype, *_load_id(load))
@@ -105,6 +104,26 @@ def trace_distributed(source, seeds, out, options: TraceOptions | None = None, *
              timings)
     shutil.rmtree(parts_dir, ignore_errors=True)
     return outputs
+
+
+def _blocks_series(client, series, vector, seeds, outputs, opts, why, load, field, timings,
+                   **kw) -> list[Path]:
+    """Block mode, snapshot after snapshot (each a job of its own: the workers' pools hold one
+    snapshot's bricks), into one file each; a series' files carry their snapshot's time and
+    position, as the seeds mode writes them.  ``timings``: one snapshot's, or with several
+    ``snapshots`` (each one's) and ``tasks`` (their sum)."""
+    done, each = [], []
+    for i, ((t, ref), out) in enumerate(zip(series, outputs)):
+        tim: dict = {}
+        extra = {"snapshot_time": float(t), "snapshot_index": i} if len(series) > 1 else None
+        done.append(Path(trace_blocks(client, ref, vector, seeds, out, opts, why,
+                                      field=field if i == 0 else None, load=load, attrs=extra,
+                                      timings=tim, **kw)))
+        each.append(tim)
+    if timings is not None:
+        timings.update(each[0] if len(each) == 1 else
+                       {"snapshots": each, "tasks": sum(e["tasks"] for e in each)})
+    return done
 
 
 def pathlines_distributed(series, seeds, out, release=None, options: TraceOptions | None = None,

@@ -319,7 +319,7 @@ def cell_nodes(grid, points: np.ndarray) -> np.ndarray:
 
 
 def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
-              budget: int = GROUP_BYTES) -> dict:
+              budget: int = GROUP_BYTES, pool: BrickPool | None = None) -> dict:
     """``compute(field, points)`` (a dict of per-point arrays), on a copy of ``field`` that holds
     only the nodes near ``points`` (each brick holding their cells, ``brick_nodes``, with its
     upper corners and ``halo`` nodes more on every side), a group of bricks at a time within
@@ -328,7 +328,9 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
     written, and given back after each group).  The file is read through a pool of bricks
     (``BrickPool``) and the groups go through the bricks block by block, so that a brick a
     neighbouring group needs again is read once; ``scalars``: the scalar arrays ``compute``
-    reads."""
+    reads.  ``pool``: a pool of the vector's bricks to read them through (a trace's, whose
+    resident bricks are then not read again), where its bricks are these and it holds a
+    block's boxes (or every brick)."""
     from dataclasses import replace
 
     g = field.grid
@@ -351,12 +353,16 @@ def by_bricks(field, points: np.ndarray, compute, scalars=(), halo: int = 0,
     reach = 1 + halo  # nodes read beyond a brick: its cells' upper corners, and the halo
     most = int(np.prod(-(-(size + 2 * reach) // size) + 2))  # bricks a block's boxes span
     maps, copies, pools = [], {}, {}
+    if pool is not None and (not np.array_equal(pool.size, size)
+                             or pool.slots < min(most, int(np.prod(count)))):
+        pool = None
     for name, st in arrays.items():
         nbytes = int(np.prod(st.shape)) * st.dtype.itemsize
         maps.append(_anonymous(nbytes))
         copies[name] = np.frombuffer(maps[-1], st.dtype, nbytes // st.dtype.itemsize).reshape(st.shape)
         one = int(np.prod(size)) * int(np.prod(st.shape[3:])) * st.dtype.itemsize
-        pools[name] = BrickPool(st, g, max(budget // 2, most * one) / POOL_SHARE, size)
+        pools[name] = pool if name is None and pool is not None else BrickPool(
+            st, g, max(budget // 2, most * one) / POOL_SHARE, size)
     # (the other scalars as they are: in memory, or still in their file, unread)
     kept = {n: field.scalars.meta(n) for n in field.scalars}
     sub = replace(field, vector=copies[None],

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..fields import Field
-from ..fields.bricks import by_bricks, read_whole
+from ..fields.bricks import GROUP_BYTES, by_bricks, read_whole
 from ..fields.curl import CURL_REACH, vorticity_at
 
 # name -> intermediates it needs
@@ -103,13 +103,18 @@ def norm(v: np.ndarray) -> np.ndarray:
     return np.sqrt((x * x + y * y) + z * z)
 
 
+def from_field(names) -> list[str]:
+    """The attributes of ``names`` read from the field (not from the trace or the seeds)."""
+    return [n for n in names if n not in ("time", "arc_length", "distance_to_seed")]
+
+
 def compute(field: Field, names, points, t, s, seeds_per_vertex,
-            bricked: bool = False) -> dict[str, np.ndarray]:
+            bricked: bool = False, pool=None, budget: int = GROUP_BYTES) -> dict[str, np.ndarray]:
     """Attributes ``names`` at the vertices ``points`` (N, 3).  A large field not in memory
     (any, where ``bricked``: the trace read it brick by brick) is read near the vertices only,
-    a few bricks at a time (``bricks.by_bricks``)."""
+    a few bricks at a time (``bricks.by_bricks``, with its ``pool`` and ``budget``)."""
     check(field, names)
-    sampled = [n for n in names if n not in ("time", "arc_length", "distance_to_seed")]
+    sampled = from_field(names)
     scalars = [n for n in sampled if n not in ATTRIBUTES]
     whole = read_whole(field) and all(read_whole(field, n) for n in scalars)
     # (no vertex: by_bricks would give no array, and the samplers give empty ones)
@@ -117,7 +122,7 @@ def compute(field: Field, names, points, t, s, seeds_per_vertex,
         # every sampled attribute from one read of the bricks near the vertices
         halo = CURL_REACH if any(ATTRIBUTES.get(n) == ("curl",) for n in sampled) else 0
         out = by_bricks(field, points, lambda f, p: compute(f, sampled, p, None, None, None),
-                        scalars, halo)
+                        scalars, halo, budget, pool)
         rest = compute(field, [n for n in names if n not in out], points, t, s, seeds_per_vertex)
         return {n: out[n] if n in out else rest[n] for n in names}
     cache: dict[str, np.ndarray] = {}

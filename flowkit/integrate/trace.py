@@ -99,7 +99,7 @@ def check_result(n_seeds: int, n_drawable: int, reasons: np.ndarray, empty: str 
 
 def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None, *,
                   batch_seeds: int = 4096, position_dtype="float32", backend="numba",
-                  empty: str = "raise", setup=None, **kw):
+                  empty: str = "raise", setup=None, write_behind: bool = False, **kw):
     """Trace and stream each batch of ``batch_seeds`` seeds to the HDF5 file ``path``.
 
     Peak memory is bounded by one batch, whatever the number of seeds: the pass buffer
@@ -109,13 +109,18 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
     250 vertices.  The file appears atomically when complete.  Returns the path.  ``empty``: as
     for ``trace`` (raised before the file appears).  ``setup``: what runs the passes of each
     batch in place of ``Setup(field, opts, backend)`` (the scale-out's block mode: the same
-    ``run``, ``reads`` and ``path``, on workers).
+    ``run``, ``reads`` and ``path``, on workers).  ``write_behind``: each batch is written in a
+    thread while the next one is traced (two batches held): for a ``setup`` whose passes run
+    elsewhere, so that this process waits for them and writes at once.
     """
+    from concurrent.futures import ThreadPoolExecutor, wait
+
     from ..io.lines_h5 import LinesWriter
 
     opts = resolve_options(options, kw)
     seeds = _seeds(seeds)
-    writer = None
+    writer = writing = None
+    behind = ThreadPoolExecutor(1, thread_name_prefix="flowkit-write") if write_behind else None
     drawable, reasons = 0, []
     try:
         setup = Setup(field, opts, backend) if setup is None else setup
@@ -126,7 +131,13 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
                 reasons.append(part.line_data["reason"])
             if writer is None:
                 writer = LinesWriter.like(part, path, position_dtype=position_dtype)
-            writer.append(part)
+            if writing is not None:
+                writing.result()  # (the batches in order; an error in writing raised here)
+            writing = None if behind is None else behind.submit(writer.append, part)
+            if behind is None:
+                writer.append(part)
+        if writing is not None:
+            writing.result()
         if writer is None:
             none = _empty(field, opts)
             none.attrs = line_attrs(field, opts)
@@ -136,10 +147,14 @@ def trace_to_file(field: Field, seeds, path, options: TraceOptions | None = None
         writer.set_attrs(setup.reads())  # (over all batches)
         return writer.close()
     except BaseException:
+        if writing is not None:
+            wait([writing])  # (not aborted under an append)
         if writer is not None:
             writer.abort()
         raise
     finally:
+        if behind is not None:
+            behind.shutdown()
         lanes.compile_pending()
 
 
@@ -602,11 +617,13 @@ def _assemble(field, opts: TraceOptions, seeds, id0, pts, t, s, owner, cols,
         ld.update(cols)
     offsets = np.zeros(n + 1, np.int64)
     np.cumsum(counts, out=offsets[1:])
-    pd = {}
-    if point_data is not None:  # computed by the backend (OpenCL: in its kernel)
-        pd = point_data
-    elif opts.attributes:  # the seed of every vertex only for the attribute that uses it
-        seed_of = seeds[line_of] if "distance_to_seed" in opts.attributes else None
-        pd = _attributes.compute(field, opts.attributes, pts, t, s, seed_of, bricked)
+    # computed by the backend (OpenCL: in its kernel) or by the block owners (those read from
+    # the field); the rest here
+    pd = point_data or {}
+    rest = [n for n in opts.attributes if n not in pd]
+    if rest:  # the seed of every vertex only for the attribute that uses it
+        seed_of = seeds[line_of] if "distance_to_seed" in rest else None
+        pd = {**pd, **_attributes.compute(field, rest, pts, t, s, seed_of, bricked)}
+        pd = {n: pd[n] for n in opts.attributes}
     return Lines(pts, offsets, pd, ld)
 

@@ -20,6 +20,7 @@
     [trace]                  # TraceOptions by name (method, rtol, max_length, direction, ...)
     max_length = 20.0
     attributes = []          # extra attributes to store in the lines file (none by default)
+    # distribute = "blocks"  # with --workers: "auto" (default), "seeds" or "blocks"
 
     [styles]                 # name = "style file" (a reference), or an inline style table
     halo = "styles/halo.toml"
@@ -70,6 +71,9 @@ DEFAULT_SIZE = (1600, 900)
 DEFAULT_IMAGES = "{view}_{snapshot}.png"
 DEFAULT_FRAMES = 24
 DEFAULT_FPS = 12.0
+# trace_distributed's distribute= (flowkit/distributed/blocks.py MODES; not imported: loading a
+# scene needs no Dask)
+DISTRIBUTE = ("auto", "seeds", "blocks")
 # TraceOptions the scene decides itself: attributes (from the styles), progress, budget
 TRACE_KEYS = tuple(f.name for f in dataclasses.fields(TraceOptions)
                    if f.name not in ("attributes", "progress", "budget"))
@@ -130,6 +134,7 @@ class Scene:
     cache_dir: Path | None = None
     cache_enabled: bool = True
     prune: tuple[float, float] | None = None  # (distance, fraction) from [seeds] prune
+    distribute: str = "auto"  # [trace] distribute: trace_distributed's, with workers
     version: int = SCENE_VERSION
 
     @property
@@ -176,7 +181,7 @@ def _scene(data: dict, path: Path | None, where: str) -> Scene:
             raise SceneError(f"{where}: missing table [{key}]")
     fsrc = _field(f"{where} [field]", data["field"], base)
     seeds, prune = _seeds(f"{where} [seeds]", data["seeds"], base)
-    trace, extra = _trace(f"{where} [trace]", data.get("trace", {}))
+    trace, extra, distribute = _trace(f"{where} [trace]", data.get("trace", {}))
     if parse_even_spec(seeds) is not None and "direction" not in data.get("trace", {}):
         trace = trace.replace(direction="both")  # as the CLI: even lines grow both ways
     styles, sources = _styles(f"{where} [styles]", data["styles"], base)
@@ -184,7 +189,7 @@ def _scene(data: dict, path: Path | None, where: str) -> Scene:
     outputs = _outputs(f"{where} [outputs]", data.get("outputs", {}), views)
     cache_dir, enabled = _cache(f"{where} [cache]", data.get("cache", {}), base)
     return Scene(path, fsrc, seeds, trace, styles, sources, views, outputs, extra, cache_dir,
-                 enabled, prune)
+                 enabled, prune, distribute)
 
 
 def _string(where, key, v) -> str:
@@ -266,13 +271,18 @@ def _seeds(where: str, t, base: Path) -> tuple[str, tuple[float, float] | None]:
     return spec, prune
 
 
-def _trace(where: str, t: dict) -> tuple[TraceOptions, tuple[str, ...]]:
-    _check_keys(where, t, set(TRACE_KEYS) | {"attributes"})
+def _trace(where: str, t: dict) -> tuple[TraceOptions, tuple[str, ...], str]:
+    _check_keys(where, t, set(TRACE_KEYS) | {"attributes", "distribute"})
     extra = t.get("attributes", [])
     if not isinstance(extra, list):
         _fail(where, "attributes", extra, "a list of attribute names, e.g. ['T', 'time']")
     extra = tuple(_name(where, f"attributes[{i}]", a) for i, a in enumerate(extra))
-    kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in t.items() if k != "attributes"}
+    distribute = t.get("distribute", "auto")
+    if distribute not in DISTRIBUTE:
+        _fail(where, "distribute", distribute, " or ".join(map(repr, DISTRIBUTE))
+              + " (how --workers split the trace: docs/scale-out.md)")
+    kw = {k: (tuple(v) if isinstance(v, list) else v) for k, v in t.items()
+          if k not in ("attributes", "distribute")}
     for k, v in kw.items():  # TraceOptions checks ranges; TOML types are checked here
         if isinstance(v, bool) and k != "cell_aware":
             _fail(where, k, v, "a number or a string, not a boolean")
@@ -285,7 +295,7 @@ def _trace(where: str, t: dict) -> tuple[TraceOptions, tuple[str, ...]]:
         bad = next((k for k in kw if f" {k} " in f" {msg} "), None)
         shown = f"{bad} = {kw[bad]!r}: " if bad else ""
         raise SceneError(f"{where}: {shown}{msg}") from None
-    return opts, extra
+    return opts, extra, distribute
 
 
 def _styles(where: str, t, base: Path) -> tuple[dict[str, Style], dict[str, str]]:

@@ -2,11 +2,12 @@
 image per view, then (with ``[outputs] animation``) one animation per view; each stage reports its
 progress and time.
 
-With ``workers`` > 1 and several snapshots to trace, the traces run on a Dask LocalCluster
-(``flowkit.distributed.trace_distributed``, one file per snapshot, float64 positions so the cache
-holds exactly what a local trace gives); loading cached lines and rendering stay in this process
-(one OpenGL context).  Without flowkit.distributed the snapshots run one after the other, and the
-run says so.
+With ``workers`` > 1 and several snapshots to trace (or one, with ``[trace] distribute =
+"blocks"``), the traces run on a Dask LocalCluster (``flowkit.distributed.trace_distributed``
+with the scene's ``distribute``, one file per snapshot, float64 positions so the cache holds
+exactly what a local trace gives); loading cached lines and rendering stay in this process (one
+OpenGL context).  Without flowkit.distributed the snapshots run one after the other, and the run
+says so.
 """
 
 from __future__ import annotations
@@ -85,6 +86,9 @@ def run_scene(scene: Scene | str | Path, *, snapshot=None, out_dir=None, cache_d
     traced = {}
     if workers is not None and workers > 1:
         traced = _trace_on_cluster(plan, cache, workers, notes, report)
+    elif scene.distribute != "auto":
+        notes.append(f"[trace] distribute = {scene.distribute!r} splits a trace across Dask "
+                     "workers (--workers N, N > 1); traced in this process")
     for n in notes:
         report(f"note: {n}")
     for v, why in still_views(scene).items():  # say so rather than write a still loop
@@ -107,7 +111,8 @@ def _trace_on_cluster(plan: Plan, cache, workers: int, notes: list, report) -> d
     """Trace every snapshot that needs a trace on ``workers`` Dask processes; {index: Lines}."""
     todo = [s for s in plan.snapshots if cache is None or cache.decide(
         cache.get(cache.key(cache.inputs(plan, s))), plan.attributes)[0] in ("trace", "retrace")]
-    if len(todo) < 2:
+    distribute = plan.scene.distribute
+    if len(todo) < (1 if distribute == "blocks" else 2):  # (blocks: a field no process holds)
         return {}
     try:
         from ..distributed import trace_distributed
@@ -118,7 +123,8 @@ def _trace_on_cluster(plan: Plan, cache, workers: int, notes: list, report) -> d
     if needs_field(plan.scene.seeds) or plan.scene.prune:
         notes.append(f"--workers {workers}: {plan.scene.seeds.split(':')[0]} seeds are placed in "
                      "each snapshot's field (and pruning compares lines with each other); "
-                     "snapshots run one after the other")
+                     "snapshots run one after the other"
+                     + (" in this process, not in blocks" if distribute == "blocks" else ""))
         return {}
     import tempfile
 
@@ -133,15 +139,18 @@ def _trace_on_cluster(plan: Plan, cache, workers: int, notes: list, report) -> d
     else:
         source = src.location
     t0 = time.perf_counter()
+    tim: dict = {}
     with tempfile.TemporaryDirectory(prefix="flowkit-scene-") as tmp:
         paths = trace_distributed(source, parse_seed_spec(plan.scene.seeds),
                                   Path(tmp) / "lines.h5", plan.options, workers=workers,
                                   snapshots=[s.index for s in todo], per_snapshot=True,
                                   vector=src.vector, load=src.load_options,
-                                  position_dtype="float64", progress=False)
+                                  position_dtype="float64", progress=False,
+                                  distribute=distribute, timings=tim)
         traced = {s.index: read_lines(p) for s, p in zip(todo, paths)}
-    report(f"trace: {len(todo)} snapshots on {workers} Dask workers "
-           f"({time.perf_counter() - t0:.2f} s)")
+    n = len(todo)
+    report(f"trace: {n} snapshot{'s' if n > 1 else ''} on {workers} Dask workers, distribute "
+           f"{tim['distribute']}: {tim['distribute_why']} ({time.perf_counter() - t0:.2f} s)")
     return traced
 
 
