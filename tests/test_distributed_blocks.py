@@ -56,6 +56,8 @@ CASES = {
     # the vorticity's boxes span more bricks than it holds (sampled through a pool of its own)
     "small pool": {"max_length": 10.0, "direction": "both", "memory": "110kB",
                    "attributes": ["vorticity"]},
+    # the Rosenbrock stepper's lines, their state handed between workers like any other
+    "ros34pw2": {"max_length": 6.0, "direction": "both", "method": "ros34pw2"},
 }
 
 
@@ -68,6 +70,27 @@ def test_block_mode_equals_the_serial_trace(client, tmp_path, case):
     assert t["blocks"] >= 2 and t["block_rounds"] >= 2 and t["handoffs_per_line"] > 0
     assert all(0 <= r["idle_share"] <= 1 for r in t["rounds"]) and len(t["rounds"]) >= 2
     assert got.attrs["distribute"] == "blocks" and got.attrs["bricks_read"] > 0
+
+
+def test_stiff_lines_switch_steppers_across_workers(client, tmp_path):
+    """auto: a line flagged stiff on one worker goes on with the Rosenbrock stepper there and
+    on the next worker's blocks, as in one process."""
+    from flowkit.fields import Field
+    from flowkit.fields.analytic import LinearField
+
+    f = LinearField.stiff().to_field((9, 9, 33), bounds=[[-1, 1], [-1, 1], [0, 8]])
+    path = tmp_path / "stiff.h5"
+    save_field(Field(f.grid, f.vector.astype(np.float32), source="stiff"), path, compression=None)
+    with h5py.File(path, "a") as h:
+        a = h["vectors/U"][...]
+        del h["vectors/U"]
+        h.create_dataset("vectors/U", data=a, chunks=(4, 4, 4, 3))
+    seeds = np.random.default_rng(2).uniform([-0.9, -0.9, 0.1], [0.9, 0.9, 1.0], (12, 3))
+    t = {}
+    whole, got = _blocks(client, path, seeds, t, method="auto", rtol=1e-6, atol=1e-6,
+                         max_time=5.0)
+    _same_lines_and_attrs(whole, got)
+    assert got.line_data["ros34pw2"].sum() >= 6 and t["handoffs_per_line"] > 0
 
 
 def test_float32_output_rounded_on_the_workers(client, tmp_path):

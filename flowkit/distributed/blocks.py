@@ -327,9 +327,10 @@ class BlockRun:
                  retries: int = 2, budget: int | None = None, load=None,
                  balance: bool = True, attrs: dict | None = None, position_dtype="float64"):
         entry = opts.entry
-        if entry.explicit is None or entry.switch_to is not None:
-            raise ValueError(f"method {entry.name}: block mode runs the explicit methods (a field "
-                             f"read brick by brick)")
+        if entry.switch_to is not None and not opts.cell_aware:
+            # (as a field read brick by brick anywhere: a switching plain line locates its cell
+            # afresh, where no brick need be resident)
+            raise ValueError(f"method {entry.name}: block mode runs it cell-aware only")
         check(field, opts.attributes)  # (here, not on every worker)
         self.client, self.retries, self.why = client, retries, why
         self.addrs = sorted(client.scheduler_info()["workers"])
