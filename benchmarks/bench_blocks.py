@@ -68,15 +68,22 @@ def run_blocks(path, seeds, out, workers, limit, repeat=1, **kw) -> tuple[float,
             wall = time.perf_counter() - t
             # (on a shared machine the workers may get fewer cores than there are workers)
             tim["cores"] = (sum(c.run(time.process_time).values()) - cpu) / wall
+            tim["wall"] = wall
             best = min(best, (wall, tim), key=lambda b: b[0])
         return (*best, sorted(c.run(_peak_gb).values()))
 
 
 def _counts(tim: dict) -> str:
+    rounds = tim["rounds"]
+    vertices = sum(sum(r.get("worker_vertices", [0])) for r in rounds)
+    back = (f", {sum(r['vertex_bytes'] for r in rounds) / vertices:.1f} bytes back per vertex"
+            if vertices and "vertex_bytes" in rounds[0] else "")
     return (f"{tim['blocks']} blocks of {tim['block_bricks']} bricks, {tim['block_rounds']} "
             f"rounds, {tim['handoffs_per_line']:.2f} handoffs per line, idle share "
             f"{tim['idle_share']:.2f}, {tim['shared_blocks']} blocks shared, read "
-            f"{tim['field_bytes_read'] / 1e9:.2f} GB, cores the workers got {tim['cores']:.2f}")
+            f"{tim['field_bytes_read'] / 1e9:.2f} GB, cores the workers got {tim['cores']:.2f}; "
+            f"the client's time outside the rounds {tim['wall'] - sum(r['wall_s'] for r in rounds):.2f} s"
+            f"{back}")
 
 
 def _equal(a_path, b_path) -> str:

@@ -347,9 +347,8 @@ class BlockRun:
                        tuple(int(v) for v in self.layout.size),
                        tuple(int(v) for v in self.layout.span), self.layout.budget,
                        typical_speed(field), dict(load or {}),
-                       # (rounded on the workers as the writer would: the same bits; not where
-                       # the client computes from the positions, or another rounding would
-                       # follow)
+                       # (rounded on the workers to the writer's float32: the same bits; not
+                       # where the client computes the distance to the seed from them)
                        "float32" if np.dtype(position_dtype) == np.float32
                        and "distance_to_seed" not in opts.attributes else "float64")
         self.paths: set = set()
@@ -390,13 +389,12 @@ class BlockRun:
         start = np.empty_like(lengths)  # where each run goes
         start[order] = np.cumsum(lengths[order]) - lengths[order]
         total = int(lengths.sum())
-        first = got[0]
+        # (t and s stay zeros where the workers did not send them: nothing reads them then)
+        out = {"points": np.empty((total, 3), got[0]["points"].dtype),
+               "t": np.zeros(total), "s": np.zeros(total)}
         # (a task that emitted no vertex sampled nothing)
-        names = next((list(r["point_data"]) for r in got if r["point_data"]), [])
-        out = {"points": np.empty((total, 3), first["points"].dtype),
-               "t": np.zeros(total), "s": np.zeros(total)}  # (zeros: not read, not sent)
-        out.update({k: np.empty((total, *v.shape[1:]), v.dtype) for k, v in next(
-            (r["point_data"] for r in got if r["point_data"]), {}).items()})
+        sampled = next((r["point_data"] for r in got if r["point_data"]), {})
+        out.update({k: np.empty((total, *v.shape[1:]), v.dtype) for k, v in sampled.items()})
         at = 0
         for r in got:
             k = r["runs"].size
@@ -409,7 +407,7 @@ class BlockRun:
                            *r["point_data"].items()):
                 if v is not None:
                     out[key][dest] = v
-        self.point_data = {k: out[k] for k in names} or None
+        self.point_data = {k: out[k] for k in sampled} or None
         return out["points"], out["t"], out["s"], np.repeat(runs[order], lengths[order])
 
     def _round(self, rows, block, emit, batch: Batch) -> list[dict]:
