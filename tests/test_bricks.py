@@ -47,6 +47,20 @@ def _abc_file(path, n=24, chunk=8, periodic=False, hole=None, t=None):
     return path
 
 
+def _stiff_file(path):
+    """(the stiff linear field, float32 in chunks of 4^3 nodes, at ``path``; seeds in it whose
+    lines all get flagged stiff)."""
+    from flowkit.fields.analytic import LinearField
+
+    f = LinearField.stiff().to_field((9, 9, 33), bounds=[[-1, 1], [-1, 1], [0, 8]])
+    save_field(Field(f.grid, f.vector.astype(np.float32), source="stiff"), path, compression=None)
+    with h5py.File(path, "a") as h:
+        a = h["vectors/U"][...]
+        del h["vectors/U"]
+        h.create_dataset("vectors/U", data=a, chunks=(4, 4, 4, 3))
+    return path, np.random.default_rng(2).uniform([-0.9, -0.9, 0.1], [0.9, 0.9, 1.0], (12, 3))
+
+
 def _budgeted(path, seeds, budget="120kB", **kw):
     """(lines in memory, lines under ``budget``, the budgeted field: still unread)."""
     whole = trace(load_field(path), seeds, **kw)
@@ -81,16 +95,7 @@ def test_budgeted_traces_equal_traces_in_memory(case, tmp_path):
 def test_stiff_lines_switch_to_the_rosenbrock_stepper_under_a_budget(tmp_path):
     """auto's lines go on with the Rosenbrock stepper where they are flagged stiff, brick by
     brick as in memory."""
-    from flowkit.fields.analytic import LinearField
-
-    f = LinearField.stiff().to_field((9, 9, 33), bounds=[[-1, 1], [-1, 1], [0, 8]])
-    path = tmp_path / "stiff.h5"
-    save_field(Field(f.grid, f.vector.astype(np.float32), source="stiff"), path, compression=None)
-    with h5py.File(path, "a") as h:
-        a = h["vectors/U"][...]
-        del h["vectors/U"]
-        h.create_dataset("vectors/U", data=a, chunks=(4, 4, 4, 3))
-    seeds = np.random.default_rng(2).uniform([-0.9, -0.9, 0.1], [0.9, 0.9, 1.0], (12, 3))
+    path, seeds = _stiff_file(tmp_path / "stiff.h5")
     whole, lines, _ = _budgeted(path, seeds, "40kB", method="auto", rtol=1e-6, atol=1e-6,
                                 max_time=5.0)
     _same(whole, lines)

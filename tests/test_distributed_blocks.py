@@ -12,7 +12,7 @@ import h5py
 import numpy as np
 import pytest
 import test_distributed
-from test_bricks import SEEDS, _abc_file
+from test_bricks import SEEDS, _abc_file, _stiff_file
 from test_stored_fields import _same
 
 from flowkit import trace
@@ -75,17 +75,7 @@ def test_block_mode_equals_the_serial_trace(client, tmp_path, case):
 def test_stiff_lines_switch_steppers_across_workers(client, tmp_path):
     """auto: a line flagged stiff on one worker goes on with the Rosenbrock stepper there and
     on the next worker's blocks, as in one process."""
-    from flowkit.fields import Field
-    from flowkit.fields.analytic import LinearField
-
-    f = LinearField.stiff().to_field((9, 9, 33), bounds=[[-1, 1], [-1, 1], [0, 8]])
-    path = tmp_path / "stiff.h5"
-    save_field(Field(f.grid, f.vector.astype(np.float32), source="stiff"), path, compression=None)
-    with h5py.File(path, "a") as h:
-        a = h["vectors/U"][...]
-        del h["vectors/U"]
-        h.create_dataset("vectors/U", data=a, chunks=(4, 4, 4, 3))
-    seeds = np.random.default_rng(2).uniform([-0.9, -0.9, 0.1], [0.9, 0.9, 1.0], (12, 3))
+    path, seeds = _stiff_file(tmp_path / "stiff.h5")
     t = {}
     whole, got = _blocks(client, path, seeds, t, method="auto", rtol=1e-6, atol=1e-6,
                          max_time=5.0)
